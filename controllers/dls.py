@@ -1,0 +1,33 @@
+"""Damped least squares with a fixed damping factor."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from otmm_qp.backends.backend import Backend, BackendOutput
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import KinematicState
+from otmm_qp_controllers.damping import damped_least_squares
+
+
+class DampedLeastSquaresBackend(Backend):
+    r"""DLS (Wampler; Nakamura–Hanafusa), minimiser of paper eq. (5):
+
+    .. math:: \min_{\dot q}\ \|\dot x - J\dot q\|^2 + \lambda^2\|\dot q\|^2
+              \;\Rightarrow\; \dot q = J^\top(JJ^\top + \lambda^2 I)^{-1}\dot x
+
+    Args:
+        damping: Damping factor λ ≥ 0 [task units]; λ = 0 is the pseudoinverse.
+    """
+
+    name = "dls"
+
+    def __init__(self, damping: float = 0.05) -> None:
+        if not (np.isfinite(damping) and damping >= 0.0):
+            raise ParameterError("damping", f"must be a finite number >= 0, got {damping}")
+        self.damping = float(damping)
+
+    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+        """Damped solution [rad/s], shape ``(nv,)``."""
+        return BackendOutput(damped_least_squares(state, xdot, self.damping**2), damping=self.damping)

@@ -1,0 +1,43 @@
+"""Damped least squares with damping driven by the smallest singular value."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from otmm_qp.backends.backend import Backend, BackendOutput
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import KinematicState
+from otmm_qp_controllers.damping import damped_least_squares
+
+
+class SigmaDampedLeastSquaresBackend(Backend):
+    r"""Chiaverini / Maciejewski–Klein variable damping.
+
+    .. math::
+        \lambda^2 = \begin{cases}\lambda_{max}^2\,(1 - (\sigma_{min}/\varepsilon)^2) &
+        \sigma_{min} < \varepsilon\\ 0 & \text{otherwise}\end{cases},\qquad
+        \dot q = J^\top(JJ^\top + \lambda^2 I)^{-1}\dot x
+
+    Args:
+        lambda_max: Largest damping factor λ_max > 0 [task units].
+        epsilon: Singular region width ε > 0 [task units].
+    """
+
+    name = "dls_sigma"
+
+    def __init__(self, lambda_max: float = 0.05, epsilon: float = 0.05) -> None:
+        if not (np.isfinite(lambda_max) and lambda_max > 0.0):
+            raise ParameterError("lambda_max", f"must be a finite number > 0, got {lambda_max}")
+        if not (np.isfinite(epsilon) and epsilon > 0.0):
+            raise ParameterError("epsilon", f"must be a finite number > 0, got {epsilon}")
+        self.lambda_max = float(lambda_max)
+        self.epsilon = float(epsilon)
+
+    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+        """Variably damped solution [rad/s], shape ``(nv,)``."""
+        sigma_min = state.sigma_min
+        mu = 0.0
+        if sigma_min < self.epsilon:
+            mu = self.lambda_max**2 * (1.0 - (sigma_min / self.epsilon) ** 2)
+        return BackendOutput(damped_least_squares(state, xdot, mu), damping=float(np.sqrt(mu)))

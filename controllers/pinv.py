@@ -1,0 +1,33 @@
+"""Resolved motion rate control with the (truncated) Moore–Penrose pseudoinverse."""
+
+from __future__ import annotations
+
+from otmm_qp.backends.backend import Backend, BackendOutput, truncated_pseudoinverse_apply
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import KinematicState
+
+
+class PseudoInverseBackend(Backend):
+    r"""RMRC: :math:`\dot q = J^{\#}\dot x` (paper eq. 3).
+
+    :math:`J^\# = J^{-1}` for ``nv = n`` and :math:`J^\top(JJ^\top)^{-1}` for ``nv > n``;
+    both equal the SVD pseudoinverse :math:`\sum_i \sigma_i^{-1} v_i u_i^\top`.
+    Singular values below ``rcond·σ_max`` are truncated, so at an exactly singular ``J``
+    only the achievable rows are used (the paper's Fig. 7 case). Near a singularity
+    nothing is damped: joint speeds grow as ``1/σ_min``, which is the behaviour under study.
+
+    Args:
+        rcond: Relative truncation threshold, in ``[0, 1)``.
+    """
+
+    name = "pinv"
+
+    def __init__(self, rcond: float = 1e-10) -> None:
+        if not 0.0 <= rcond < 1.0:
+            raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
+        self.rcond = float(rcond)
+
+    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+        """``q̇ = J_w^+ ẋ_w`` [rad/s], shape ``(nv,)``."""
+        return BackendOutput(truncated_pseudoinverse_apply(state, xdot, self.rcond))

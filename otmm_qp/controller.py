@@ -1,0 +1,76 @@
+"""A controller = zero or more task filters followed by one backend."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from otmm_qp.backends.backend import STATUS_NONFINITE, Backend, BackendOutput
+from otmm_qp.filters.task_filter import FilterReport, TaskFilter
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.state import KinematicState
+
+
+class ControllerOutput(NamedTuple):
+    """One control step.
+
+    Attributes:
+        qdot: Joint velocity [rad/s], shape ``(nv,)``, always finite.
+        xdot_filtered: Filtered task velocity in physical units, shape ``(n,)``.
+        reports: One :class:`FilterReport` per filter.
+        backend: What the backend returned (before the finite-value guard).
+    """
+
+    qdot: FloatArray
+    xdot_filtered: FloatArray
+    reports: tuple[FilterReport, ...]
+    backend: BackendOutput
+
+
+class Controller:
+    r"""Filters then backend, in the weighted task space of the state.
+
+    .. math:: \dot x_w = W\dot x,\quad \dot x_m = F_k \circ\dots\circ F_1(\dot x_w),
+              \quad \dot q = B(J_w, \dot x_m)
+
+    Args:
+        name: Label used in results.
+        filters: Task filters applied in order.
+        backend: The inversion backend.
+    """
+
+    def __init__(self, name: str, filters: Sequence[TaskFilter], backend: Backend) -> None:
+        self.name = name
+        self.filters = tuple(filters)
+        self.backend = backend
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Prepare for a run on ``robot`` with period ``dt`` [s]."""
+        self.backend.bind(robot, dt)
+        self.reset()
+
+    def reset(self) -> None:
+        """Reset filters and backend state."""
+        for task_filter in self.filters:
+            task_filter.reset()
+        self.backend.reset()
+
+    def step(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> ControllerOutput:
+        """Compute ``q̇`` for the physical command ``xdot`` (n,) at ``state``.
+
+        Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
+        so NaN/inf never leave a step.
+        """
+        weighted = state.weight * xdot
+        reports = []
+        for task_filter in self.filters:
+            weighted, report = task_filter.apply(state, weighted)
+            reports.append(report)
+        result = self.backend.solve(state, weighted, qdot_prev)
+        qdot = result.qdot
+        if not np.all(np.isfinite(qdot)):
+            qdot = np.zeros_like(qdot_prev)
+            result = result._replace(status=STATUS_NONFINITE)
+        return ControllerOutput(qdot, weighted / state.weight, tuple(reports), result)

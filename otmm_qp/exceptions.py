@@ -1,0 +1,169 @@
+"""Every error otmm-qp raises, rooted at :class:`OtmmError`.
+
+Each exception carries the offending data as attributes and renders as one
+line that names the field or value and what is allowed, so the CLI can print
+``str(error)`` and exit with status 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+
+class OtmmError(Exception):
+    """Root of all otmm-qp errors."""
+
+
+class ConfigError(OtmmError):
+    """A configuration value is malformed, unknown or out of range.
+
+    Attributes:
+        field: Dotted path of the offending field, e.g. ``experiments.0.dt``.
+        message: What is wrong and what is allowed.
+    """
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        self.message = message
+        super().__init__(f"{field}: {message}" if field else message)
+
+
+class ParameterError(ConfigError):
+    """A plugin parameter (e.g. ``sigma_s`` of a filter) is out of range."""
+
+
+class DimensionError(OtmmError):
+    """An array has the wrong shape.
+
+    Attributes:
+        name: Name of the array.
+        expected: Expected shape.
+        got: Shape received.
+    """
+
+    def __init__(self, name: str, expected: Sequence[int], got: Sequence[int]) -> None:
+        self.name = name
+        self.expected = tuple(expected)
+        self.got = tuple(got)
+        super().__init__(f"{name}: expected shape {self.expected}, got {self.got}")
+
+
+class PluginNotFound(OtmmError):
+    """No plugin of that name is registered in an entry-point group.
+
+    Attributes:
+        group: Entry-point group, e.g. ``otmm_qp.backends``.
+        name: Requested name.
+        available: Registered names.
+    """
+
+    def __init__(self, group: str, name: str, available: Iterable[str]) -> None:
+        self.group = group
+        self.name = name
+        self.available = sorted(available)
+        kind = group.rsplit(".", 1)[-1]
+        super().__init__(
+            f"unknown {kind[:-1] if kind.endswith('s') else kind} {name!r}; "
+            f"available: {', '.join(self.available) or '(none)'}"
+        )
+
+
+class PluginValidationError(OtmmError):
+    """A registered plugin does not implement its interface, or names clash.
+
+    Attributes:
+        plugin: Name of the plugin at fault.
+        reason: What is missing or clashing.
+    """
+
+    def __init__(self, plugin: str, reason: str) -> None:
+        self.plugin = plugin
+        self.reason = reason
+        super().__init__(f"plugin {plugin!r}: {reason}")
+
+
+class RobotLoadError(OtmmError):
+    """A robot model could not be loaded (unknown name, missing URDF)."""
+
+
+class FrameNotFound(OtmmError):
+    """The requested end-effector frame is not in the model.
+
+    Attributes:
+        frame: Requested frame name.
+        available: Valid frame names.
+    """
+
+    def __init__(self, frame: str, available: Iterable[str]) -> None:
+        self.frame = frame
+        self.available = sorted(available)
+        super().__init__(f"unknown frame {frame!r}; valid frames: {', '.join(self.available)}")
+
+
+class NotWithinJointLimits(OtmmError):
+    """A configuration lies outside the joint position limits.
+
+    Attributes:
+        joint: Joint name.
+        value: Joint value [rad] or [m].
+        lower: Lower limit.
+        upper: Upper limit.
+    """
+
+    def __init__(self, joint: str, value: float, lower: float, upper: float) -> None:
+        self.joint = joint
+        self.value = value
+        self.lower = lower
+        self.upper = upper
+        super().__init__(
+            f"q0: joint {joint!r} = {value:.6g} is outside its limits [{lower:.6g}, {upper:.6g}]"
+        )
+
+
+class UnreachableTrajectory(OtmmError):
+    """The desired trajectory leaves the arm's workspace."""
+
+
+class SolverNotFound(OtmmError):
+    """A QP solver name is unknown or not installed.
+
+    Attributes:
+        solver: Requested solver.
+        available: Installed solvers.
+    """
+
+    def __init__(self, solver: str, available: Iterable[str]) -> None:
+        self.solver = solver
+        self.available = sorted(available)
+        super().__init__(
+            f"unknown QP solver {solver!r}; installed: {', '.join(self.available)}"
+            " (pip install 'qpsolvers[<solver>]' for more)"
+        )
+
+
+class InfeasibleProblem(OtmmError):
+    """A QP step has no solution and the infeasibility policy is ``raise``.
+
+    Attributes:
+        step: Index of the control step.
+        detail: Solver message or which bound conflicts.
+    """
+
+    def __init__(self, step: int, detail: str) -> None:
+        self.step = step
+        self.detail = detail
+        super().__init__(f"infeasible QP at step {step}: {detail}")
+
+
+class PeerUnavailable(OtmmError):
+    """An optional peer library (pink, mink, drake) is not installed.
+
+    Attributes:
+        peer: Peer name.
+        hint: Install command.
+    """
+
+    def __init__(self, peer: str, hint: str) -> None:
+        self.peer = peer
+        self.hint = hint
+        super().__init__(f"peer {peer!r} is not installed; {hint}")

@@ -1,0 +1,104 @@
+r"""On-line Task Modification Method (OTMM), paper eq. (8), generalised to corank k."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from otmm_qp import registry
+from otmm_qp.exceptions import ConfigError, ParameterError
+from otmm_qp.filters.task_filter import FilterOutput, FilterReport, TaskFilter
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import KinematicState
+
+PFunction = Callable[[float, float], float]
+
+
+class OtmmFilter(TaskFilter):
+    r"""Suppress the command along the weakest left singular vector(s) of ``J_w``.
+
+    Paper form (``corank: 1``), with :math:`u_s` the left singular vector of σ_min:
+
+    .. math::
+        \dot x_m = \dot x - k\,p(\sigma_{min})\,(u_s^\top \dot x)\,u_s,
+        \qquad k = \begin{cases}1 & \sigma_{min} \le \sigma_S\\ 0 & \text{otherwise}\end{cases}
+
+    Generalised (``corank: all``): every singular value :math:`\sigma_i \le \sigma_S` is
+    filtered along its own :math:`u_i` with its own :math:`p(\sigma_i)`:
+
+    .. math:: \dot x_m = \dot x - \sum_{i:\,\sigma_i \le \sigma_S} p(\sigma_i)(u_i^\top \dot x)u_i
+
+    Since the :math:`u_i` are orthonormal, the two agree whenever at most one σ is below
+    σ_S. ``ẋ_m`` never has a larger norm than ``ẋ`` (each component is scaled by ``1−p ∈ [0,1]``).
+
+    Args:
+        sigma_s: Threshold σ_S > 0 on the singular value (weighted task units).
+        p: Name of a registered p-function (``linear``, ``sqrt``, ``cbrt``, ``power``).
+        p_params: Extra parameters of the p-function, e.g. ``{a: 0.5}`` for ``power``.
+        corank: ``1`` (paper) or ``"all"`` (every σ_i ≤ σ_S filtered).
+    """
+
+    name = "otmm"
+
+    def __init__(
+        self,
+        sigma_s: float = 0.05,
+        p: str = "linear",
+        p_params: Mapping[str, Any] | None = None,
+        corank: int | str = 1,
+    ) -> None:
+        if not (isinstance(sigma_s, int | float) and np.isfinite(sigma_s) and sigma_s > 0.0):
+            raise ParameterError("sigma_s", f"must be a finite number > 0, got {sigma_s!r}")
+        if corank not in (1, "all"):
+            raise ParameterError("corank", f"must be 1 or 'all', got {corank!r}")
+        self.sigma_s = float(sigma_s)
+        self.corank = corank
+        self.p_name = p
+        params = dict(p_params or {})
+        try:
+            function = registry.load(registry.P_FUNCTIONS, p)
+        except Exception as error:  # PluginNotFound / PluginValidationError
+            raise ConfigError("p", str(error)) from error
+        registry.check_parameters(function, params, "p_params", reserved=("s", "sigma_s"))
+        self.p_function: PFunction = partial(function, **params) if params else function
+        self.p_function(0.5 * self.sigma_s, self.sigma_s)  # validates p_params early
+
+    def p(self, sigma: float) -> float:
+        """Suppression level ``k·p(σ)`` in [0, 1]: 0 above σ_S."""
+        if sigma > self.sigma_s:
+            return 0.0
+        return float(min(max(self.p_function(sigma, self.sigma_s), 0.0), 1.0))
+
+    def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:
+        """Apply eq. (8) to the weighted command ``xdot``, shape ``(n,)``."""
+        sigma_min = state.sigma_min
+        if sigma_min > self.sigma_s:
+            return FilterOutput(xdot, FilterReport(False, sigma_min, 0.0, 0.0))
+        U, sigma = _full_left_basis(state)
+        n = sigma.size
+        if self.corank == 1:
+            indices = [n - 1]
+        else:
+            indices = [i for i in range(n) if sigma[i] <= self.sigma_s]
+        modified = np.array(xdot, dtype=float)
+        p_max = 0.0
+        for i in indices:
+            p_i = self.p(float(sigma[i]))
+            u_i = U[:, i]
+            modified -= p_i * float(u_i @ xdot) * u_i
+            p_max = max(p_max, p_i)
+        removed = float(np.linalg.norm(xdot - modified))
+        return FilterOutput(modified, FilterReport(True, sigma_min, p_max, removed))
+
+
+def _full_left_basis(state: KinematicState) -> tuple[FloatArray, FloatArray]:
+    """Left singular vectors (n, n) and singular values (n,), zero-padded when nv < n."""
+    n = state.task_dim
+    if state.sigma.size == n:
+        return state.U, state.sigma
+    # Fewer joints than task rows: the missing directions have σ = 0.
+    U_full = np.linalg.svd(state.task_jacobian, full_matrices=True)[0]
+    return U_full, np.concatenate([state.sigma, np.zeros(n - state.sigma.size)])

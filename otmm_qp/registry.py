@@ -1,0 +1,199 @@
+"""Name → implementation registry over ``importlib.metadata`` entry points.
+
+Every robot, filter, p-function, backend and trajectory, built-in or third
+party, is found the same way: an entry point in one of the groups below. A
+third-party package adds, in its ``pyproject.toml``::
+
+    [project.entry-points."otmm_qp.backends"]
+    my_backend = "my_package.module:MyBackend"
+
+Each loaded object is validated against its interface when it is first looked
+up: a class must subclass the group's base class and implement its abstract
+methods; a p-function must be a callable taking ``(s, sigma_s)``. Two
+distributions claiming one name raise :class:`PluginValidationError`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any
+
+from otmm_qp.exceptions import ConfigError, PluginNotFound, PluginValidationError
+
+ROBOTS = "otmm_qp.robots"
+FILTERS = "otmm_qp.filters"
+P_FUNCTIONS = "otmm_qp.p_functions"
+BACKENDS = "otmm_qp.backends"
+TRAJECTORIES = "otmm_qp.trajectories"
+GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES)
+
+
+@dataclass(frozen=True)
+class PluginSpec:
+    """Where a plugin comes from.
+
+    Attributes:
+        group: Entry-point group.
+        name: Registered name.
+        value: ``module:attribute`` target.
+        distribution: Name of the distribution that registered it.
+    """
+
+    group: str
+    name: str
+    value: str
+    distribution: str
+
+
+_cache: dict[tuple[str, str], Any] = {}
+
+
+def _base_class(group: str) -> type | None:
+    # Imported lazily: the base modules import this one.
+    if group == ROBOTS:
+        from otmm_qp.robots.robot import Robot
+
+        return Robot
+    if group == FILTERS:
+        from otmm_qp.filters.task_filter import TaskFilter
+
+        return TaskFilter
+    if group == BACKENDS:
+        from otmm_qp.backends.backend import Backend
+
+        return Backend
+    if group == TRAJECTORIES:
+        from otmm_qp.trajectories.trajectory import Trajectory
+
+        return Trajectory
+    return None
+
+
+def specs(group: str) -> dict[str, PluginSpec]:
+    """Registered plugins of a group, by name.
+
+    Raises:
+        PluginValidationError: Two distributions register the same name.
+    """
+    found: dict[str, PluginSpec] = {}
+    for entry in metadata.entry_points(group=group):
+        dist = entry.dist.name if entry.dist is not None else "?"
+        spec = PluginSpec(group, entry.name, entry.value, dist)
+        previous = found.get(entry.name)
+        if previous is not None and previous.value != spec.value:
+            raise PluginValidationError(
+                entry.name,
+                f"name registered twice in {group}: {previous.value} "
+                f"(from {previous.distribution}) and {spec.value} (from {dist})",
+            )
+        found[entry.name] = spec
+    return dict(sorted(found.items()))
+
+
+def available(group: str) -> list[str]:
+    """Sorted names registered in ``group``."""
+    return list(specs(group))
+
+
+def validate(group: str, name: str, obj: Any) -> None:
+    """Check that ``obj`` implements the interface of ``group``.
+
+    Raises:
+        PluginValidationError: Naming the plugin and what is missing.
+    """
+    base = _base_class(group)
+    if base is None:  # p-functions: plain callables p(s, sigma_s, **params)
+        if not callable(obj):
+            raise PluginValidationError(name, "p-function must be callable as p(s, sigma_s)")
+        params = list(inspect.signature(obj).parameters)
+        if len(params) < 2:
+            raise PluginValidationError(name, "p-function must accept (s, sigma_s)")
+        return
+    if not (inspect.isclass(obj) and issubclass(obj, base)):
+        raise PluginValidationError(name, f"must be a subclass of {base.__module__}.{base.__name__}")
+    missing = sorted(getattr(obj, "__abstractmethods__", ()))
+    if missing:
+        raise PluginValidationError(name, f"does not implement {', '.join(missing)}")
+
+
+def load(group: str, name: str) -> Any:
+    """Load and validate the plugin ``name`` of ``group``.
+
+    Raises:
+        PluginNotFound: Listing the available names.
+        PluginValidationError: The plugin fails its interface check or cannot be imported.
+    """
+    key = (group, name)
+    if key in _cache:
+        return _cache[key]
+    registered = specs(group)
+    if name not in registered:
+        raise PluginNotFound(group, name, registered)
+    entry = next(e for e in metadata.entry_points(group=group) if e.name == name)
+    try:
+        obj = entry.load()
+    except Exception as error:  # noqa: BLE001 - report any import failure as the plugin's fault
+        raise PluginValidationError(name, f"cannot be loaded from {entry.value}: {error}") from error
+    validate(group, name, obj)
+    _cache[key] = obj
+    return obj
+
+
+def clear_cache() -> None:
+    """Forget loaded plugins (after installing or patching entry points)."""
+    _cache.clear()
+
+
+def check_parameters(
+    factory: Callable[..., Any], params: Mapping[str, Any], field: str, reserved: tuple[str, ...] = ()
+) -> None:
+    """Reject parameters that ``factory`` does not accept, before calling it.
+
+    Args:
+        factory: Plugin class or function.
+        params: Parameters from the config.
+        field: Config path used in the message.
+        reserved: Parameters the framework passes itself (hidden from the user).
+
+    Raises:
+        ConfigError: Naming the unknown parameter and the allowed ones.
+    """
+    signature = inspect.signature(factory)
+    accepted = [
+        p.name
+        for p in signature.parameters.values()
+        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and p.name not in ("self",)
+    ]
+    if any(p.kind == p.VAR_KEYWORD for p in signature.parameters.values()):
+        return
+    allowed = [a for a in accepted if a not in reserved]
+    for key in params:
+        if key not in allowed:
+            raise ConfigError(
+                f"{field}.{key}", f"unknown parameter; allowed: {', '.join(allowed) or '(none)'}"
+            )
+
+
+def create(group: str, name: str, params: Mapping[str, Any], field: str, **framework: Any) -> Any:
+    """Instantiate plugin ``name`` with user ``params`` plus framework-supplied keywords.
+
+    Raises:
+        PluginNotFound: Unknown name (listing available ones).
+        ConfigError: Unknown or invalid parameter, with its config path.
+    """
+    try:
+        factory = load(group, name)
+    except PluginNotFound as error:
+        raise ConfigError(field, str(error)) from error
+    check_parameters(factory, params, field, reserved=tuple(framework))
+    try:
+        return factory(**framework, **params)
+    except ConfigError as error:
+        if error.field.startswith(field):
+            raise
+        raise type(error)(f"{field}.{error.field}" if error.field else field, error.message) from error
+    except (TypeError, ValueError) as error:
+        raise ConfigError(field, f"invalid parameters for {name!r}: {error}") from error

@@ -1,0 +1,6 @@
+"""Robot models: the :class:`Robot` interface and built-in arms."""
+
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.robots.robot import FloatArray, Robot, TaskKind
+
+__all__ = ["FloatArray", "PlanarArm", "Robot", "TaskKind"]

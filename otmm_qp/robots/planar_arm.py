@@ -1,0 +1,104 @@
+"""Planar serial arm with revolute joints and a 2-D position task."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
+from otmm_qp.robots.robot import FloatArray, Robot
+
+
+class PlanarArm(Robot):
+    r"""Planar arm with ``m`` revolute joints; task = end-effector position (n = 2).
+
+    .. math::
+        x = \sum_{i=1}^{m} l_i \cos\theta_i,\quad y = \sum_{i=1}^{m} l_i \sin\theta_i,
+        \quad \theta_i = \sum_{j \le i} q_j
+
+    and :math:`J_{:,j} = \sum_{i \ge j} l_i(-\sin\theta_i, \cos\theta_i)`.
+
+    Args:
+        link_lengths: Link lengths [m], shape ``(m,)``, all > 0.
+        limits: Optional joint position limits ``[[lower, upper], ...]`` [rad], shape ``(m, 2)``;
+            unbounded when omitted.
+        velocity_limits: Optional joint speed limits [rad/s], shape ``(m,)``; inf when omitted.
+    """
+
+    task_kind = "position"
+
+    def __init__(
+        self,
+        link_lengths: Sequence[float],
+        limits: Sequence[Sequence[float]] | None = None,
+        velocity_limits: Sequence[float] | None = None,
+    ) -> None:
+        lengths = np.asarray(link_lengths, dtype=float)
+        if lengths.ndim != 1 or lengths.size < 1:
+            raise ParameterError("link_lengths", "must be a non-empty list of lengths [m]")
+        if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
+            raise ParameterError("link_lengths", f"every length must be > 0 [m], got {lengths.tolist()}")
+        self.link_lengths = lengths
+        m = lengths.size
+        self.name = f"planar{m}"
+        if limits is None:
+            self._lower = np.full(m, -np.inf)
+            self._upper = np.full(m, np.inf)
+        else:
+            bounds = np.asarray(limits, dtype=float)
+            if bounds.shape != (m, 2):
+                raise DimensionError("limits", (m, 2), bounds.shape)
+            if np.any(bounds[:, 0] >= bounds[:, 1]):
+                raise ConfigError("limits", "each row must be [lower, upper] with lower < upper")
+            self._lower, self._upper = bounds[:, 0].copy(), bounds[:, 1].copy()
+        if velocity_limits is None:
+            self._velocity = np.full(m, np.inf)
+        else:
+            speeds = np.asarray(velocity_limits, dtype=float)
+            if speeds.shape != (m,):
+                raise DimensionError("velocity_limits", (m,), speeds.shape)
+            if np.any(speeds <= 0.0):
+                raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s]")
+            self._velocity = speeds
+        self._names = tuple(f"joint{i + 1}" for i in range(m))
+        # Reach annulus: r_max = Σl, r_min = max(0, 2·max(l) − Σl).
+        self.reach_max = float(lengths.sum())
+        self.reach_min = float(max(0.0, 2.0 * lengths.max() - lengths.sum()))
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """``joint1 … jointm``."""
+        return self._names
+
+    @property
+    def task_dim(self) -> int:
+        """Planar position: 2."""
+        return 2
+
+    @property
+    def position_limits(self) -> tuple[FloatArray, FloatArray]:
+        """Joint position limits [rad]."""
+        return self._lower, self._upper
+
+    @property
+    def velocity_limits(self) -> FloatArray:
+        """Joint speed limits [rad/s]."""
+        return self._velocity
+
+    def kinematics(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """End-effector position [m], shape ``(2,)``, and Jacobian, shape ``(2, m)``."""
+        theta = np.cumsum(q)
+        dx = self.link_lengths * np.cos(theta)  # (m,) link x-extents [m]
+        dy = self.link_lengths * np.sin(theta)
+        x = np.array([dx.sum(), dy.sum()])
+        # Column j sums the links from j outward: reverse cumulative sums.
+        jacobian = np.empty((2, theta.size))
+        jacobian[0] = -np.cumsum(dy[::-1])[::-1]
+        jacobian[1] = np.cumsum(dx[::-1])[::-1]
+        return x, jacobian
+
+    def can_reach(self, x: FloatArray) -> bool:
+        """Whether ``x`` [m] lies in the reach annulus ``r_min ≤ ‖x‖ ≤ r_max``."""
+        radius = float(np.hypot(x[0], x[1]))
+        return self.reach_min - 1e-9 <= radius <= self.reach_max + 1e-9

@@ -1,0 +1,77 @@
+"""Per-step kinematic state: J and its SVD computed once, shared by filters and backend."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from otmm_qp.robots.robot import FloatArray, Robot
+
+
+@dataclass(frozen=True, slots=True)
+class KinematicState:
+    r"""Everything a control step needs about the arm at ``q``.
+
+    The task may be weighted by a diagonal :math:`W` (to make metres and radians
+    comparable in a pose task). Filters and backends work in the weighted task space:
+
+    .. math:: J_w = W J = U \Sigma V^\top, \qquad \dot x_w = W \dot x
+
+    Attributes:
+        q: Configuration, shape ``(nq,)``.
+        x: Task value at ``q`` (see :class:`~otmm_qp.robots.Robot`).
+        jacobian: Physical Jacobian ``J``, shape ``(n, nv)``.
+        weight: Diagonal of ``W``, shape ``(n,)``.
+        task_jacobian: ``J_w = W J``, shape ``(n, nv)``.
+        U: Left singular vectors of ``J_w``, shape ``(n, k)``, ``k = min(n, nv)``.
+        sigma: Singular values of ``J_w``, descending, shape ``(k,)``.
+        Vt: Right singular vectors (rows), shape ``(k, nv)``.
+    """
+
+    q: FloatArray
+    x: FloatArray
+    jacobian: FloatArray
+    weight: FloatArray
+    task_jacobian: FloatArray
+    U: FloatArray
+    sigma: FloatArray
+    Vt: FloatArray
+
+    @classmethod
+    def compute(cls, robot: Robot, q: FloatArray, weight: FloatArray | None = None) -> KinematicState:
+        """Evaluate kinematics and the one SVD of this step.
+
+        Args:
+            robot: The arm.
+            q: Configuration, shape ``(nq,)``.
+            weight: Task weight diagonal, shape ``(n,)``; identity when None.
+        """
+        x, jacobian = robot.kinematics(q)
+        if weight is None:
+            weight = np.ones(jacobian.shape[0])
+            task_jacobian = jacobian
+        else:
+            task_jacobian = weight[:, None] * jacobian
+        U, sigma, Vt = np.linalg.svd(task_jacobian, full_matrices=False)
+        return cls(q, x, jacobian, weight, task_jacobian, U, sigma, Vt)
+
+    @property
+    def task_dim(self) -> int:
+        """Task dimension ``n``."""
+        return int(self.jacobian.shape[0])
+
+    @property
+    def sigma_min(self) -> float:
+        """Smallest singular value of the task Jacobian, counting missing ranks as zero.
+
+        For ``nv < n`` the Jacobian has at most ``nv`` nonzero singular values, so σ_min = 0.
+        """
+        if self.sigma.size < self.task_dim:
+            return 0.0
+        return float(self.sigma[-1])
+
+    @property
+    def weakest_joint_direction(self) -> FloatArray:
+        """Right singular vector of σ_min, shape ``(nv,)``: the joint motion the task barely sees."""
+        return self.Vt[-1]

@@ -1,0 +1,7 @@
+"""Desired task trajectories."""
+
+from otmm_qp.trajectories.circle import CircleTrajectory
+from otmm_qp.trajectories.line import ConstantVelocityLineTrajectory, QuinticLineTrajectory
+from otmm_qp.trajectories.trajectory import Trajectory
+
+__all__ = ["CircleTrajectory", "ConstantVelocityLineTrajectory", "QuinticLineTrajectory", "Trajectory"]

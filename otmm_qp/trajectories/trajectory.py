@@ -1,0 +1,36 @@
+"""The trajectory interface: desired task value and velocity, analytic in time."""
+
+from __future__ import annotations
+
+import abc
+
+from otmm_qp.robots.robot import FloatArray
+
+
+class Trajectory(abc.ABC):
+    """Desired task motion ``x_d(t)``, ``ẋ_d(t)``.
+
+    Plugins are constructed as ``Trajectory(start=x0, **params)`` where ``x0`` is the task
+    value at the start configuration (so a circle can start at the point nearest to it and a
+    pose trajectory can keep the start orientation).
+
+    Attributes:
+        duration: Natural duration [s] (one period, the motion time), used when the
+            experiment gives none.
+    """
+
+    name: str = "trajectory"
+    duration: float
+
+    @abc.abstractmethod
+    def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
+        """Desired task value and task velocity at time ``t`` [s].
+
+        Returns:
+            ``(x_d, ẋ_d)``: task value (same kind as ``Robot.kinematics``) and its velocity,
+            shape ``(n,)`` (for poses: linear [m/s] then angular [rad/s], world-aligned).
+        """
+
+    def position(self, t: float) -> FloatArray:
+        """Desired task value at ``t`` [s]."""
+        return self.sample(t)[0]

@@ -28,6 +28,10 @@ class DampedLeastSquaresBackend(Backend):
             raise ParameterError("damping", f"must be a finite number >= 0, got {damping}")
         self.damping = float(damping)
 
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """Damped solution [rad/s], shape ``(nv,)``."""
-        return BackendOutput(damped_least_squares(state, xdot, self.damping**2), damping=self.damping)
+        return BackendOutput(
+            damped_least_squares(state, xdot, self.damping**2), damping=self.damping
+        )

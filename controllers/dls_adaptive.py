@@ -65,7 +65,9 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
             return 0.0
         return self.alpha * (1.0 - w / w0) ** 2
 
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """Adaptively damped solution [rad/s], shape ``(nv,)``."""
         k = self.damping_for(state)
         return BackendOutput(damped_least_squares(state, xdot, k), damping=k)

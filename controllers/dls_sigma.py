@@ -34,7 +34,9 @@ class SigmaDampedLeastSquaresBackend(Backend):
         self.lambda_max = float(lambda_max)
         self.epsilon = float(epsilon)
 
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """Variably damped solution [rad/s], shape ``(nv,)``."""
         sigma_min = state.sigma_min
         mu = 0.0

@@ -28,6 +28,8 @@ class PseudoInverseBackend(Backend):
             raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
         self.rcond = float(rcond)
 
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """``q̇ = J_w^+ ẋ_w`` [rad/s], shape ``(nv,)``."""
         return BackendOutput(truncated_pseudoinverse_apply(state, xdot, self.rcond))

@@ -46,7 +46,9 @@ class SelectiveDampedLeastSquaresBackend(Backend):
         self.gamma_max = float(gamma_max)
         self.rcond = float(rcond)
 
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """SDLS joint velocity [rad/s], shape ``(nv,)``."""
         sigma, U, Vt = state.sigma, state.U, state.Vt
         column_norms = np.linalg.norm(state.task_jacobian, axis=0)  # ρ_j, (nv,)

@@ -57,7 +57,9 @@ class Controller:
             task_filter.reset()
         self.backend.reset()
 
-    def step(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> ControllerOutput:
+    def step(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> ControllerOutput:
         """Compute ``q̇`` for the physical command ``xdot`` (n,) at ``state``.
 
         Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,

@@ -113,7 +113,9 @@ def validate(group: str, name: str, obj: Any) -> None:
             raise PluginValidationError(name, "p-function must accept (s, sigma_s)")
         return
     if not (inspect.isclass(obj) and issubclass(obj, base)):
-        raise PluginValidationError(name, f"must be a subclass of {base.__module__}.{base.__name__}")
+        raise PluginValidationError(
+            name, f"must be a subclass of {base.__module__}.{base.__name__}"
+        )
     missing = sorted(getattr(obj, "__abstractmethods__", ()))
     if missing:
         raise PluginValidationError(name, f"does not implement {', '.join(missing)}")
@@ -136,7 +138,9 @@ def load(group: str, name: str) -> Any:
     try:
         obj = entry.load()
     except Exception as error:  # noqa: BLE001 - report any import failure as the plugin's fault
-        raise PluginValidationError(name, f"cannot be loaded from {entry.value}: {error}") from error
+        raise PluginValidationError(
+            name, f"cannot be loaded from {entry.value}: {error}"
+        ) from error
     validate(group, name, obj)
     _cache[key] = obj
     return obj
@@ -148,7 +152,10 @@ def clear_cache() -> None:
 
 
 def check_parameters(
-    factory: Callable[..., Any], params: Mapping[str, Any], field: str, reserved: tuple[str, ...] = ()
+    factory: Callable[..., Any],
+    params: Mapping[str, Any],
+    field: str,
+    reserved: tuple[str, ...] = (),
 ) -> None:
     """Reject parameters that ``factory`` does not accept, before calling it.
 
@@ -194,6 +201,8 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
     except ConfigError as error:
         if error.field.startswith(field):
             raise
-        raise type(error)(f"{field}.{error.field}" if error.field else field, error.message) from error
+        raise type(error)(
+            f"{field}.{error.field}" if error.field else field, error.message
+        ) from error
     except (TypeError, ValueError) as error:
         raise ConfigError(field, f"invalid parameters for {name!r}: {error}") from error

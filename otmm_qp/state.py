@@ -39,7 +39,9 @@ class KinematicState:
     Vt: FloatArray
 
     @classmethod
-    def compute(cls, robot: Robot, q: FloatArray, weight: FloatArray | None = None) -> KinematicState:
+    def compute(
+        cls, robot: Robot, q: FloatArray, weight: FloatArray | None = None
+    ) -> KinematicState:
         """Evaluate kinematics and the one SVD of this step.
 
         Args:

@@ -63,7 +63,9 @@ class Backend(abc.ABC):
         """Forget warm starts and per-run state (called at the start of each run)."""
 
     @abc.abstractmethod
-    def solve(self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray) -> BackendOutput:
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         """Joint velocity for the weighted task velocity ``xdot`` (n,).
 
         Args:

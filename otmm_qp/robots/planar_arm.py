@@ -38,7 +38,9 @@ class PlanarArm(Robot):
         if lengths.ndim != 1 or lengths.size < 1:
             raise ParameterError("link_lengths", "must be a non-empty list of lengths [m]")
         if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0.0):
-            raise ParameterError("link_lengths", f"every length must be > 0 [m], got {lengths.tolist()}")
+            raise ParameterError(
+                "link_lengths", f"every length must be > 0 [m], got {lengths.tolist()}"
+            )
         self.link_lengths = lengths
         m = lengths.size
         self.name = f"planar{m}"

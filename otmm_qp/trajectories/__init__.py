@@ -4,4 +4,9 @@ from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.line import ConstantVelocityLineTrajectory, QuinticLineTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory
 
-__all__ = ["CircleTrajectory", "ConstantVelocityLineTrajectory", "QuinticLineTrajectory", "Trajectory"]
+__all__ = [
+    "CircleTrajectory",
+    "ConstantVelocityLineTrajectory",
+    "QuinticLineTrajectory",
+    "Trajectory",
+]

@@ -56,7 +56,9 @@ class CircleTrajectory(Trajectory):
         if not period > 0.0:
             raise ParameterError("period", f"must be > 0 [s], got {period}")
         if direction not in ("clockwise", "counterclockwise"):
-            raise ParameterError("direction", f"must be clockwise or counterclockwise, got {direction!r}")
+            raise ParameterError(
+                "direction", f"must be clockwise or counterclockwise, got {direction!r}"
+            )
         if not turns > 0.0:
             raise ParameterError("turns", f"must be > 0, got {turns}")
         self.radius = float(radius)

@@ -13,7 +13,11 @@ from otmm_qp.trajectories.trajectory import Trajectory
 
 class _Line(Trajectory):
     def __init__(
-        self, start: FloatArray, end: Sequence[float], duration: float, begin: Sequence[float] | None
+        self,
+        start: FloatArray,
+        end: Sequence[float],
+        duration: float,
+        begin: Sequence[float] | None,
     ) -> None:
         self.end = np.asarray(end, dtype=float)
         dim = self.end.size
@@ -49,7 +53,11 @@ class QuinticLineTrajectory(_Line):
     name = "quintic_line"
 
     def __init__(
-        self, start: FloatArray, end: Sequence[float], duration: float, begin: Sequence[float] | None = None
+        self,
+        start: FloatArray,
+        end: Sequence[float],
+        duration: float,
+        begin: Sequence[float] | None = None,
     ) -> None:
         super().__init__(start, end, duration, begin)
 
@@ -73,7 +81,11 @@ class ConstantVelocityLineTrajectory(_Line):
     name = "constant_velocity_line"
 
     def __init__(
-        self, start: FloatArray, end: Sequence[float], duration: float, begin: Sequence[float] | None = None
+        self,
+        start: FloatArray,
+        end: Sequence[float],
+        duration: float,
+        begin: Sequence[float] | None = None,
     ) -> None:
         super().__init__(start, end, duration, begin)
 

@@ -1,0 +1,144 @@
+r"""Run metrics, defined in one place.
+
+All speeds in [rad/s], errors in [m] (position) or [rad] (orientation), times in [s].
+
+* ``max_error`` / ``rms_error``: max and RMS of ‖e_pos‖ over the run; ``*_window``: the same
+  within ``±window/2`` [s] of the time of minimum σ_min (the "singular window").
+* ``max_joint_speed``: :math:`\max_k \|\dot q_k\|_\infty`, excluding the first step, whose jump
+  from rest is reported as ``initial_jump`` = :math:`\|\dot q_0\|_\infty`.
+* ``chattering``: :math:`\sum_{k\ge 2}\|\dot q_k - \dot q_{k-1}\|_1` (the first step's jump
+  excluded, it is the initial jump); ``max_jump``: :math:`\max_{k\ge 2}\|\dot q_k-\dot q_{k-1}\|_\infty`.
+* ``accel_sign_changes``: number of sign changes of each joint's acceleration
+  :math:`(\dot q_k - \dot q_{k-1})/dt`, summed over joints, ignoring |accel| below 1e-6 rad/s².
+* ``min_sigma`` and ``t_min_sigma``; ``steps_below_sigma_s``: steps with σ_min < σ_S.
+* ``max_weak_speed``: :math:`\max_k |v_{min}^\top \dot q_k|`.
+* ``blow_up``: any non-finite step, or :math:`\|\dot q\|_\infty` above ``blow_up_speed``.
+* ``position_violations`` / ``max_position_excess``: steps with a joint outside its position
+  limits and the largest excess [rad]; the same for velocity limits.
+* ``status_<name>``: count of backend statuses; ``step_time_median_us`` / ``_p99_us``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from otmm_qp.backends.backend import STATUS_NONFINITE, STATUSES
+from otmm_qp.simulation.run_result import RunResult
+
+Metrics = dict[str, float | int | bool | str]
+
+
+@dataclass(frozen=True)
+class MetricSettings:
+    """Parameters of the metrics.
+
+    Attributes:
+        sigma_s: Threshold for ``steps_below_sigma_s`` [task units].
+        window: Width of the singular window around the σ_min minimum [s].
+        blow_up_speed: Joint speed above which a run counts as blown up [rad/s].
+    """
+
+    sigma_s: float = 0.05
+    window: float = 1.0
+    blow_up_speed: float = 100.0
+
+
+METRIC_NAMES: tuple[str, ...] = (
+    "max_error",
+    "rms_error",
+    "max_error_window",
+    "rms_error_window",
+    "final_error",
+    "max_orientation_error",
+    "rms_orientation_error",
+    "max_joint_speed",
+    "initial_jump",
+    "chattering",
+    "max_jump",
+    "accel_sign_changes",
+    "min_sigma",
+    "t_min_sigma",
+    "steps_below_sigma_s",
+    "max_weak_speed",
+    "blow_up",
+    "position_violations",
+    "max_position_excess",
+    "velocity_violations",
+    "max_velocity_excess",
+    *(f"status_{s}" for s in STATUSES),
+    "step_time_median_us",
+    "step_time_p99_us",
+    "steps",
+    "completed",
+)
+
+
+def _safe_max(values: np.ndarray) -> float:
+    return float(np.max(values)) if values.size else 0.0
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
+
+
+def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> Metrics:
+    """All metrics of ``run`` (see the module docstring for definitions)."""
+    settings = settings or MetricSettings()
+    out: Metrics = {}
+    error = run.position_error
+    out["max_error"] = _safe_max(error)
+    out["rms_error"] = _rms(error)
+    if run.steps:
+        k_min = int(np.argmin(run.sigma_min))
+        t_min = float(run.t[k_min])
+        window = np.abs(run.t - t_min) <= settings.window / 2.0
+        out["min_sigma"] = float(run.sigma_min[k_min])
+        out["t_min_sigma"] = t_min
+    else:
+        window = np.zeros(0, dtype=bool)
+        out["min_sigma"] = float("nan")
+        out["t_min_sigma"] = float("nan")
+    out["max_error_window"] = _safe_max(error[window])
+    out["rms_error_window"] = _rms(error[window])
+    out["final_error"] = float(error[-1]) if error.size else float("nan")
+    orientation = run.orientation_error
+    out["max_orientation_error"] = (
+        _safe_max(orientation) if orientation is not None else float("nan")
+    )
+    out["rms_orientation_error"] = _rms(orientation) if orientation is not None else float("nan")
+
+    speed = np.max(np.abs(run.qdot), axis=1) if run.steps else np.zeros(0)  # ‖q̇_k‖∞
+    out["initial_jump"] = float(speed[0]) if speed.size else 0.0
+    out["max_joint_speed"] = _safe_max(speed[1:])
+    jumps = np.diff(run.qdot, axis=0)  # (N−1, nv): q̇_k − q̇_{k−1}, k ≥ 1
+    out["chattering"] = float(np.abs(jumps).sum())
+    out["max_jump"] = _safe_max(np.max(np.abs(jumps), axis=1)) if jumps.size else 0.0
+    accel = jumps / run.dt
+    signs = np.sign(np.where(np.abs(accel) < 1e-6, 0.0, accel))
+    changes = 0
+    for joint in signs.T:
+        nonzero = joint[joint != 0.0]
+        changes += int(np.count_nonzero(nonzero[1:] != nonzero[:-1]))
+    out["accel_sign_changes"] = changes
+    out["steps_below_sigma_s"] = int(np.count_nonzero(run.sigma_min < settings.sigma_s))
+    out["max_weak_speed"] = _safe_max(run.weak_speed)
+    nonfinite = bool(np.count_nonzero(run.status == STATUS_NONFINITE))
+    out["blow_up"] = nonfinite or bool(np.any(speed > settings.blow_up_speed))
+
+    lower, upper = run.position_limits
+    excess = np.maximum(np.maximum(lower - run.q, run.q - upper), 0.0)  # (N, nv) [rad]
+    out["position_violations"] = int(np.count_nonzero(np.any(excess > 1e-9, axis=1)))
+    out["max_position_excess"] = _safe_max(excess)
+    speed_excess = np.maximum(np.abs(run.qdot) - run.velocity_limits, 0.0)
+    out["velocity_violations"] = int(np.count_nonzero(np.any(speed_excess > 1e-9, axis=1)))
+    out["max_velocity_excess"] = _safe_max(speed_excess)
+    for status in STATUSES:
+        out[f"status_{status}"] = int(np.count_nonzero(run.status == status))
+    micro = run.step_time * 1e6
+    out["step_time_median_us"] = float(np.median(micro)) if micro.size else float("nan")
+    out["step_time_p99_us"] = float(np.percentile(micro, 99)) if micro.size else float("nan")
+    out["steps"] = run.steps
+    out["completed"] = run.error_message is None
+    return out

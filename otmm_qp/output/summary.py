@@ -1,0 +1,85 @@
+"""``summary.csv`` (one row per run, a named column per metric) and ``summary.md``."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+
+from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
+
+ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
+#: Columns shown in the Markdown table (the CSV has all of them).
+MARKDOWN_COLUMNS = (
+    ("max_error", "max err [m]", ".2e"),
+    ("rms_error", "rms err [m]", ".2e"),
+    ("max_error_window", "max err window [m]", ".2e"),
+    ("max_joint_speed", "max ‖q̇‖∞ [rad/s]", ".3g"),
+    ("initial_jump", "initial jump [rad/s]", ".3g"),
+    ("chattering", "chattering Σ‖Δq̇‖₁", ".3g"),
+    ("max_jump", "max ‖Δq̇‖∞", ".3g"),
+    ("min_sigma", "min σ", ".2e"),
+    ("steps_below_sigma_s", "steps σ<σS", "d"),
+    ("position_violations", "limit viol.", "d"),
+    ("blow_up", "blow-up", ""),
+    ("step_time_median_us", "median µs/step", ".1f"),
+)
+
+
+def summary_row(identity: dict[str, str], metrics: Metrics, error_message: str | None) -> dict[str, object]:
+    """One CSV row: identity columns, every metric, then the error message (empty if none)."""
+    row: dict[str, object] = dict(identity)
+    for name in METRIC_NAMES:
+        row[name] = metrics.get(name, "")
+    row["error_message"] = error_message or ""
+    return row
+
+
+def write_summary_csv(rows: Sequence[dict[str, object]], path: Path) -> None:
+    """Write ``summary.csv`` with a stable column order."""
+    columns = [*ID_COLUMNS, *METRIC_NAMES, "error_message"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=columns)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({c: _csv_value(row.get(c, "")) for c in columns})
+
+
+def _csv_value(value: object) -> object:
+    if isinstance(value, float):
+        return f"{value:.9g}"
+    return value
+
+
+def _format(value: object, spec: str) -> str:
+    if isinstance(value, bool):
+        return "**yes**" if value else "no"
+    if isinstance(value, int | float) and spec:
+        try:
+            return format(value, spec)
+        except (TypeError, ValueError):
+            return str(value)
+    return str(value)
+
+
+def write_summary_markdown(rows: Sequence[dict[str, object]], path: Path, title: str) -> None:
+    """Write ``summary.md``: one table per experiment and loop mode."""
+    lines = [f"# {title}: summary", ""]
+    lines.append("Metric definitions: `otmm_qp/metrics/metrics.py`. All columns are in `summary.csv`.")
+    groups: dict[tuple[str, str], list[dict[str, object]]] = {}
+    for row in rows:
+        groups.setdefault((str(row["experiment"]), str(row["loop_mode"])), []).append(row)
+    for (experiment, mode), group in groups.items():
+        lines += ["", f"## {experiment} — {mode}", ""]
+        header = ["controller", *(label for _, label, _ in MARKDOWN_COLUMNS)]
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|" + "---|" * len(header))
+        for row in group:
+            cells = [str(row["controller"])]
+            cells += [_format(row.get(key, ""), spec) for key, _, spec in MARKDOWN_COLUMNS]
+            if row.get("error_message"):
+                cells[0] += f" (stopped: {row['error_message']})"
+            lines.append("| " + " | ".join(cells) + " |")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")

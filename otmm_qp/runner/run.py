@@ -1,0 +1,154 @@
+"""Run a validated suite, writing results as each experiment finishes."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TextIO
+
+from otmm_qp.config.schema import SuiteConfig
+from otmm_qp.metrics.metrics import MetricSettings, Metrics, compute_metrics
+from otmm_qp.output.summary import summary_row, write_summary_csv, write_summary_markdown
+from otmm_qp.runner.build import PreparedExperiment, prepare_experiment
+from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.simulation.simulate import simulate
+
+
+@dataclass
+class RunRecord:
+    """One finished run: its time series and metrics."""
+
+    result: RunResult
+    metrics: Metrics
+
+    @property
+    def identity(self) -> dict[str, str]:
+        """Experiment, loop mode, controller, filters and backend."""
+        r = self.result
+        return {
+            "experiment": r.experiment,
+            "loop_mode": r.loop_mode,
+            "controller": r.controller,
+            "filters": r.filters,
+            "backend": r.backend,
+        }
+
+
+@dataclass
+class SuiteResult:
+    """All runs of a suite, and the messages of runs that stopped early."""
+
+    suite: SuiteConfig
+    records: list[RunRecord] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    compute_seconds: float = 0.0
+
+    def find(self, experiment: str, loop_mode: str, controller: str) -> RunRecord | None:
+        """The record of one run, or None."""
+        for record in self.records:
+            r = record.result
+            if (r.experiment, r.loop_mode, r.controller) == (experiment, loop_mode, controller):
+                return record
+        return None
+
+
+ExperimentHook = Callable[[PreparedExperiment, list[RunRecord], Path | None], None]
+
+
+def prepare_suite(suite: SuiteConfig, source: str = "config") -> list[PreparedExperiment]:
+    """Build every experiment first, so bad input fails before any compute."""
+    return [prepare_experiment(suite, i, source) for i in range(len(suite.experiments))]
+
+
+def run_experiment(prepared: PreparedExperiment, settings: MetricSettings) -> list[RunRecord]:
+    """Every (loop mode, controller) run of one experiment."""
+    records = []
+    for mode in prepared.loop_modes:
+        for controller in prepared.controllers:
+            result = simulate(
+                prepared.robot,
+                controller,
+                prepared.trajectory,
+                prepared.q0,
+                prepared.dt,
+                prepared.duration,
+                mode,
+                prepared.clik_gain,
+                prepared.task_weight,
+                prepared.config.name,
+            )
+            records.append(RunRecord(result, compute_metrics(result, settings)))
+    return records
+
+
+def _progress(stream: TextIO | None, text: str) -> None:
+    if stream is None:
+        return
+    if stream.isatty():
+        stream.write("\r\033[K" + text)
+    else:
+        stream.write(text + "\n")
+    stream.flush()
+
+
+def run_suite(
+    suite: SuiteConfig,
+    out_dir: Path | None,
+    source: str = "config",
+    progress: TextIO | None = sys.stderr,
+    after_experiment: ExperimentHook | None = None,
+    prepared: list[PreparedExperiment] | None = None,
+) -> SuiteResult:
+    """Run all experiments; write time series and summaries after each experiment.
+
+    Args:
+        suite: Validated config.
+        out_dir: Results folder, or None to keep results in memory only.
+        source: Config name used in messages.
+        progress: Stream for progress lines (None: silent).
+        after_experiment: Called with each finished experiment (e.g. to draw figures).
+        prepared: Already-built experiments (built here when None).
+
+    Returns:
+        All records; ``errors`` lists runs that stopped early (their steps are kept).
+    """
+    experiments = prepared if prepared is not None else prepare_suite(suite, source)
+    settings = MetricSettings(**suite.metrics.model_dump())
+    outcome = SuiteResult(suite)
+    total = sum(len(p.loop_modes) * len(p.controllers) for p in experiments)
+    done = 0
+    for experiment in experiments:
+        tic = time.perf_counter()
+        records = run_experiment(experiment, settings)
+        outcome.compute_seconds += time.perf_counter() - tic
+        done += len(records)
+        _progress(progress, f"[{done}/{total} runs] {experiment.config.name} done")
+        for record in records:
+            if record.result.error_message:
+                r = record.result
+                outcome.errors.append(f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}")
+        outcome.records.extend(records)
+        if out_dir is not None:
+            for record in records:
+                r = record.result
+                r.write_csv(out_dir / r.experiment / r.loop_mode / f"{_slug(r.controller)}.csv")
+            write_summaries(outcome, out_dir)
+        if after_experiment is not None:
+            after_experiment(experiment, records, out_dir)
+    if progress is not None and progress.isatty():
+        progress.write("\n")
+    return outcome
+
+
+def write_summaries(outcome: SuiteResult, out_dir: Path) -> None:
+    """(Re)write ``summary.csv`` and ``summary.md`` from the records so far."""
+    rows = [summary_row(r.identity, r.metrics, r.result.error_message) for r in outcome.records]
+    write_summary_csv(rows, out_dir / "summary.csv")
+    write_summary_markdown(rows, out_dir / "summary.md", outcome.suite.name)
+
+
+def _slug(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)

@@ -1,0 +1,124 @@
+"""Time series of one run (one controller, one experiment, one loop mode)."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from otmm_qp.robots.robot import FloatArray
+
+
+@dataclass
+class RunResult:
+    """Per-step records of a simulated run; step ``k`` is at ``t[k] = k·dt``.
+
+    Attributes:
+        experiment: Experiment name.
+        controller: Controller label.
+        loop_mode: ``feedforward``, ``clik`` or ``newton``.
+        dt: Control period [s].
+        joint_names: Names of the ``nv`` joints.
+        task_kind: ``position`` or ``pose``.
+        t: Times [s], shape ``(N,)``.
+        q: Joint coordinates at the start of each step [rad], shape ``(N, nv)``.
+        qdot: Joint velocities applied over each step [rad/s], shape ``(N, nv)``.
+        position: End-effector position [m], shape ``(N, d)`` (d = 2 or 3).
+        position_desired: Desired position [m], shape ``(N, d)``.
+        error: Task error ``e(x_d, x)``, shape ``(N, n)`` (pose: linear [m], angular [rad]).
+        sigma_min: Smallest singular value of ``J_w``, shape ``(N,)``.
+        p: Largest filter suppression level, shape ``(N,)``.
+        filter_active: Whether any filter changed the command, shape ``(N,)``.
+        removed: ‖ẋ_c − ẋ_m‖ (weighted), shape ``(N,)``.
+        damping: Backend damping (NaN when none), shape ``(N,)``.
+        scale: Fraction of the command realised, shape ``(N,)``.
+        weak_speed: Joint speed along the weakest right singular vector ``|v_minᵀq̇|``, ``(N,)``.
+        status: Backend status per step, shape ``(N,)``.
+        step_time: Wall time of state + controller per step [s], shape ``(N,)``.
+        position_limits: ``(lower, upper)`` joint limits [rad], shapes ``(nv,)``.
+        velocity_limits: Joint speed limits [rad/s], shape ``(nv,)``.
+        error_message: Set when the run stopped early on an error.
+    """
+
+    experiment: str
+    controller: str
+    loop_mode: str
+    dt: float
+    joint_names: tuple[str, ...]
+    task_kind: str
+    t: FloatArray
+    q: FloatArray
+    qdot: FloatArray
+    position: FloatArray
+    position_desired: FloatArray
+    error: FloatArray
+    sigma_min: FloatArray
+    p: FloatArray
+    filter_active: np.ndarray
+    removed: FloatArray
+    damping: FloatArray
+    scale: FloatArray
+    weak_speed: FloatArray
+    status: np.ndarray
+    step_time: FloatArray
+    position_limits: tuple[FloatArray, FloatArray]
+    velocity_limits: FloatArray
+    filters: str = ""
+    backend: str = ""
+    error_message: str | None = None
+    extra: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def steps(self) -> int:
+        """Number of recorded steps."""
+        return int(self.t.size)
+
+    @property
+    def position_error(self) -> FloatArray:
+        """Norm of the linear part of the error [m], shape ``(N,)``."""
+        d = 3 if self.task_kind == "pose" else self.error.shape[1]
+        return np.asarray(np.linalg.norm(self.error[:, :d], axis=1), dtype=float)
+
+    @property
+    def orientation_error(self) -> FloatArray | None:
+        """Norm of the angular error [rad], shape ``(N,)``; None for position tasks."""
+        if self.task_kind != "pose":
+            return None
+        return np.asarray(np.linalg.norm(self.error[:, 3:], axis=1), dtype=float)
+
+    def write_csv(self, path: Path) -> None:
+        """Write the time series as CSV (one row per step, one named column per value)."""
+        path.parent.mkdir(parents=True, exist_ok=True)
+        d = self.position.shape[1]
+        axes = "xyz"[:d]
+        header = ["t"]
+        header += [f"q_{name}" for name in self.joint_names]
+        header += [f"qdot_{name}" for name in self.joint_names]
+        header += [f"{a}" for a in axes] + [f"{a}_desired" for a in axes]
+        header += [f"error_{i}" for i in range(self.error.shape[1])]
+        header += ["sigma_min", "p", "filter_active", "removed", "damping", "scale", "weak_speed"]
+        header += ["status", "step_time_us"]
+        with path.open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(header)
+            for k in range(self.steps):
+                row: list[object] = [f"{self.t[k]:.6f}"]
+                row += [f"{v:.9g}" for v in self.q[k]]
+                row += [f"{v:.9g}" for v in self.qdot[k]]
+                row += [f"{v:.9g}" for v in self.position[k]]
+                row += [f"{v:.9g}" for v in self.position_desired[k]]
+                row += [f"{v:.9g}" for v in self.error[k]]
+                row += [
+                    f"{self.sigma_min[k]:.9g}",
+                    f"{self.p[k]:.6g}",
+                    int(bool(self.filter_active[k])),
+                    f"{self.removed[k]:.6g}",
+                    f"{self.damping[k]:.6g}",
+                    f"{self.scale[k]:.6g}",
+                    f"{self.weak_speed[k]:.6g}",
+                    self.status[k],
+                    f"{self.step_time[k] * 1e6:.2f}",
+                ]
+                writer.writerow(row)

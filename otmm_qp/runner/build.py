@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, SuiteConfig
 from otmm_qp.controller import Controller
-from otmm_qp.exceptions import ConfigError, DimensionError, OtmmError
+from otmm_qp.exceptions import ConfigError, DimensionError, OtmmError, PeerUnavailable
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.simulation.simulate import task_position
@@ -17,6 +17,23 @@ from otmm_qp.trajectories.trajectory import Trajectory
 
 #: Trajectory samples checked against the workspace before running.
 REACH_SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class SkippedController:
+    """A controller left out because an optional peer library is not installed.
+
+    Attributes:
+        name: Controller label.
+        filters: Filter types joined by ``+`` (``none`` when there are none).
+        backend: Backend type.
+        reason: ``peer '...' is not installed; pip install ...``.
+    """
+
+    name: str
+    filters: str
+    backend: str
+    reason: str
 
 
 @dataclass
@@ -34,6 +51,7 @@ class PreparedExperiment:
         loop_modes: Loop modes to run.
         clik_gain: CLIK gain [1/s].
         task_weight: Diagonal task weight, shape ``(n,)``, or None.
+        skipped: Controllers whose peer library is missing (reported, never run).
     """
 
     config: ExperimentConfig
@@ -46,6 +64,7 @@ class PreparedExperiment:
     loop_modes: list[LoopMode]
     clik_gain: float
     task_weight: FloatArray | None
+    skipped: list[SkippedController] = field(default_factory=list)
 
 
 def build_controller(config: ControllerConfig, field: str) -> Controller:
@@ -125,9 +144,7 @@ def prepare_experiment(
     trajectory.name = config.trajectory.type
     duration = config.duration if config.duration is not None else trajectory.duration
     check_reachable(robot, trajectory, duration, f"{field}.trajectory")
-    controllers = [
-        build_controller(c, f"{field}.controllers.{j}") for j, c in enumerate(config.controllers)
-    ]
+    controllers, skipped = _build_controllers(config, field)
     return PreparedExperiment(
         config=config,
         robot=robot,
@@ -139,4 +156,20 @@ def prepare_experiment(
         loop_modes=list(config.loop_modes or suite.loop_modes),
         clik_gain=config.clik_gain if config.clik_gain is not None else suite.clik_gain,
         task_weight=weight,
+        skipped=skipped,
     )
+
+
+def _build_controllers(
+    config: ExperimentConfig, field: str
+) -> tuple[list[Controller], list[SkippedController]]:
+    """Build every controller; one whose peer library is missing is skipped, not fatal."""
+    controllers: list[Controller] = []
+    skipped: list[SkippedController] = []
+    for j, spec in enumerate(config.controllers):
+        try:
+            controllers.append(build_controller(spec, f"{field}.controllers.{j}"))
+        except PeerUnavailable as error:
+            filters = "+".join(f.type for f in spec.filters) or "none"
+            skipped.append(SkippedController(spec.name, filters, spec.backend.type, str(error)))
+    return controllers, skipped

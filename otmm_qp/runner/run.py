@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import TextIO
 
 from otmm_qp.config.schema import SuiteConfig
-from otmm_qp.metrics.metrics import MetricSettings, Metrics, compute_metrics
+from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
 from otmm_qp.output.summary import summary_row, write_summary_csv, write_summary_markdown
-from otmm_qp.runner.build import PreparedExperiment, prepare_experiment
+from otmm_qp.runner.build import PreparedExperiment, SkippedController, prepare_experiment
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.simulation.simulate import simulate
 
@@ -39,12 +39,18 @@ class RunRecord:
 
 @dataclass
 class SuiteResult:
-    """All runs of a suite, and the messages of runs that stopped early."""
+    """All runs of a suite, the messages of runs that stopped early, and skipped controllers.
+
+    ``skipped`` holds ``(experiment, controller)`` pairs whose optional peer library is not
+    installed; each becomes a ``summary.csv`` row whose ``error_message`` starts with
+    ``skipped:`` and gives the install hint.
+    """
 
     suite: SuiteConfig
     records: list[RunRecord] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
     compute_seconds: float = 0.0
+    skipped: list[tuple[str, SkippedController]] = field(default_factory=list)
 
     def find(self, experiment: str, loop_mode: str, controller: str) -> RunRecord | None:
         """The record of one run, or None."""
@@ -129,8 +135,13 @@ def run_suite(
         for record in records:
             if record.result.error_message:
                 r = record.result
-                outcome.errors.append(f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}")
+                outcome.errors.append(
+                    f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}"
+                )
         outcome.records.extend(records)
+        for skip in experiment.skipped:
+            outcome.skipped.append((experiment.config.name, skip))
+            _progress(progress, f"{experiment.config.name}/{skip.name}: skipped ({skip.reason})")
         if out_dir is not None:
             for record in records:
                 r = record.result
@@ -146,8 +157,30 @@ def run_suite(
 def write_summaries(outcome: SuiteResult, out_dir: Path) -> None:
     """(Re)write ``summary.csv`` and ``summary.md`` from the records so far."""
     rows = [summary_row(r.identity, r.metrics, r.result.error_message) for r in outcome.records]
+    rows += [
+        _skipped_row(experiment, mode, skip)
+        for experiment, skip in outcome.skipped
+        for mode in _loop_modes(outcome.suite, experiment)
+    ]
     write_summary_csv(rows, out_dir / "summary.csv")
     write_summary_markdown(rows, out_dir / "summary.md", outcome.suite.name)
+
+
+def _loop_modes(suite: SuiteConfig, experiment: str) -> list[str]:
+    config = next(e for e in suite.experiments if e.name == experiment)
+    return list(config.loop_modes or suite.loop_modes)
+
+
+def _skipped_row(experiment: str, loop_mode: str, skip: SkippedController) -> dict[str, object]:
+    """A ``summary.csv`` row for a controller that was skipped: no metrics, the reason."""
+    identity = {
+        "experiment": experiment,
+        "loop_mode": loop_mode,
+        "controller": skip.name,
+        "filters": skip.filters,
+        "backend": skip.backend,
+    }
+    return summary_row(identity, {"steps": 0, "completed": False}, f"skipped: {skip.reason}")
 
 
 def _slug(name: str) -> str:

@@ -61,7 +61,7 @@ class PluginNotFound(OtmmError):
         self.group = group
         self.name = name
         self.available = sorted(available)
-        kind = group.rsplit(".", 1)[-1]
+        kind = group.rsplit(".", 1)[-1].replace("_", "-")
         super().__init__(
             f"unknown {kind[:-1] if kind.endswith('s') else kind} {name!r}; "
             f"available: {', '.join(self.available) or '(none)'}"

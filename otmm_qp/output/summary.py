@@ -26,7 +26,9 @@ MARKDOWN_COLUMNS = (
 )
 
 
-def summary_row(identity: dict[str, str], metrics: Metrics, error_message: str | None) -> dict[str, object]:
+def summary_row(
+    identity: dict[str, str], metrics: Metrics, error_message: str | None
+) -> dict[str, object]:
     """One CSV row: identity columns, every metric, then the error message (empty if none)."""
     row: dict[str, object] = dict(identity)
     for name in METRIC_NAMES:
@@ -66,7 +68,9 @@ def _format(value: object, spec: str) -> str:
 def write_summary_markdown(rows: Sequence[dict[str, object]], path: Path, title: str) -> None:
     """Write ``summary.md``: one table per experiment and loop mode."""
     lines = [f"# {title}: summary", ""]
-    lines.append("Metric definitions: `otmm_qp/metrics/metrics.py`. All columns are in `summary.csv`.")
+    lines.append(
+        "Metric definitions: `otmm_qp/metrics/metrics.py`. All columns are in `summary.csv`."
+    )
     groups: dict[tuple[str, str], list[dict[str, object]]] = {}
     for row in rows:
         groups.setdefault((str(row["experiment"]), str(row["loop_mode"])), []).append(row)

@@ -1,0 +1,180 @@
+"""The CLI: bad input gives one line naming the field and exit status 2; results survive."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from otmm_qp import registry
+from otmm_qp.backends.backend import Backend, BackendOutput, truncated_pseudoinverse_apply
+from otmm_qp.cli import main
+from otmm_qp.exceptions import InfeasibleProblem
+from otmm_qp.state import KinematicState
+
+GOOD = """
+name: tiny
+dt: 0.02
+loop_modes: [clik]
+experiments:
+  - name: A
+    robot: {type: planar, link_lengths: [1.0, 0.8]}
+    q0: [0.927, -2.5]
+    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
+    duration: 0.4
+    controllers:
+      - name: OTMM
+        filters: [{type: otmm, sigma_s: 0.05, p: linear}]
+        backend: {type: pinv}
+"""
+
+BAD = {
+    "malformed YAML": (GOOD.replace("dt: 0.02", "dt: [0.02"), r"malformed YAML at line \d+"),
+    "unknown key": (GOOD.replace("dt: 0.02", "dt: 0.02\nspeed: 3"), "speed: unknown key"),
+    "unknown backend": (
+        GOOD.replace("type: pinv", "type: pinvv"),
+        "experiments.0.controllers.0.backend: unknown backend 'pinvv'; available: .*dls.*pinv",
+    ),
+    "unknown filter": (
+        GOOD.replace("type: otmm", "type: otm"),
+        "filters.0: unknown filter 'otm'; available:",
+    ),
+    "unknown parameter": (
+        GOOD.replace("p: linear", "p: linear, gain: 2"),
+        r"filters.0.gain: unknown parameter; allowed: sigma_s, p, p_params, corank",
+    ),
+    "q0 wrong length": (
+        GOOD.replace("[0.927, -2.5]", "[0.927]"),
+        r"experiments.0.q0: expected shape \(2,\), got \(1,\)",
+    ),
+    "sigma_s <= 0": (
+        GOOD.replace("sigma_s: 0.05", "sigma_s: 0"),
+        "filters.0.sigma_s: must be a finite number > 0",
+    ),
+    "dt <= 0": (GOOD.replace("dt: 0.02", "dt: 0"), "dt: Input should be greater than 0"),
+    "negative gain": (
+        GOOD.replace("dt: 0.02", "dt: 0.02\nclik_gain: -1"),
+        "clik_gain: Input should be greater than or equal to 0",
+    ),
+    "unreachable": (
+        GOOD.replace("radius: 0.6", "radius: 0.7").replace("duration: 0.4", "duration: 10"),
+        r"experiments.0.trajectory: point \[1.7583, 0.4223\] at t = 3.97 s is outside the workspace of planar2",
+    ),
+    "bad loop mode": (
+        GOOD.replace("[clik]", "[open]"),
+        "loop_modes.0: Input should be 'feedforward', 'clik' or 'newton'",
+    ),
+    "start outside limits": (
+        GOOD.replace(
+            "link_lengths: [1.0, 0.8]}", "link_lengths: [1.0, 0.8], limits: [[-1, 1], [-1, 1]]}"
+        ),
+        r"experiments.0.q0: joint 'joint2' = -2.5 is outside its limits \[-1, 1\]",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD), ids=list(BAD))
+def test_bad_input_one_line_exit_2(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text, pattern = BAD[case]
+    config = tmp_path / "bad.yaml"
+    config.write_text(text)
+    status = main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"])
+    err = capsys.readouterr().err.strip()
+    assert status == 2
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("otmm-qp: error: ")
+    assert "Traceback" not in err
+    import re
+
+    assert re.search(pattern, err), err
+    assert not (tmp_path / "out").exists()  # rejected before any compute
+
+
+def test_missing_config_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "/nonexistent/x.yaml"]) == 2
+    assert "x.yaml: no such config file" in capsys.readouterr().err
+
+
+class FailingBackend(Backend):
+    """Solves like pinv for 5 steps, then reports an infeasible problem."""
+
+    def reset(self) -> None:
+        self.calls = 0
+
+    def solve(
+        self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
+    ) -> BackendOutput:
+        self.calls += 1
+        if self.calls > 5:
+            raise InfeasibleProblem(-1, "joint box is empty")
+        return BackendOutput(truncated_pseudoinverse_apply(state, xdot))
+
+
+def test_finished_experiments_keep_their_results(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run stopped by an error mid-suite keeps its steps and the other runs' results; exit 2."""
+    monkeypatch.setitem(registry._cache, (registry.BACKENDS, "failing"), FailingBackend)
+    second = (
+        GOOD.split("experiments:")[1]
+        .replace("name: A", "name: B")
+        .replace("type: pinv", "type: failing")
+    )
+    config = tmp_path / "two.yaml"
+    config.write_text(GOOD + second.split("\n", 1)[1])
+    status = main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"])
+    err = capsys.readouterr().err.strip()
+    assert status == 2
+    assert err == "otmm-qp: error: B/clik/OTMM: infeasible QP at step 5: joint box is empty"
+    rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").read_text().splitlines()))
+    assert [(r["experiment"], r["completed"], r["steps"]) for r in rows] == [
+        ("A", "True", "20"),
+        ("B", "False", "5"),
+    ]
+    assert rows[1]["error_message"] == "infeasible QP at step 5: joint box is empty"
+
+
+def test_run_writes_summary_and_series(tmp_path: Path) -> None:
+    config = tmp_path / "good.yaml"
+    config.write_text(GOOD)
+    assert main(["run", str(config), "--out", str(tmp_path), "--quiet", "--no-figures"]) == 0
+    rows = list(csv.DictReader((tmp_path / "summary.csv").read_text().splitlines()))
+    assert [(r["experiment"], r["loop_mode"], r["controller"]) for r in rows] == [
+        ("A", "clik", "OTMM")
+    ]
+    assert float(rows[0]["max_error"]) < 0.01
+    series = list(csv.DictReader((tmp_path / "A" / "clik" / "OTMM.csv").read_text().splitlines()))
+    assert len(series) == 20 and "sigma_min" in series[0]
+
+
+def test_list_shows_every_group(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for word in [
+        "robots:",
+        "filters:",
+        "p_functions:",
+        "backends:",
+        "trajectories:",
+        "otmm",
+        "cbrt",
+        "dls_adaptive",
+    ]:
+        assert word in out
+
+
+def test_console_script_exit_status() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "otmm_qp.cli", "run", "/nonexistent.yaml"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip() == "otmm-qp: error: /nonexistent.yaml: no such config file"

@@ -167,3 +167,22 @@ class PeerUnavailable(OtmmError):
         self.peer = peer
         self.hint = hint
         super().__init__(f"peer {peer!r} is not installed; {hint}")
+
+
+class PeerModelMismatch(OtmmError):
+    """A peer's model of the arm disagrees with ours on the end-effector pose.
+
+    Attributes:
+        peer: Peer name.
+        position_error: Distance between the two end-effector positions [m].
+        orientation_error: Angle between the two end-effector orientations [rad].
+    """
+
+    def __init__(self, peer: str, position_error: float, orientation_error: float) -> None:
+        self.peer = peer
+        self.position_error = position_error
+        self.orientation_error = orientation_error
+        super().__init__(
+            f"peer {peer!r}: its model puts the end effector {position_error:.3g} m and "
+            f"{orientation_error:.3g} rad away from Pinocchio's"
+        )

@@ -8,11 +8,12 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.damping import damped_least_squares
+
+from .damping import damped_least_squares
 
 
 class DampedLeastSquaresBackend(Backend):
-    r"""DLS (Wampler; Nakamura–Hanafusa), minimiser of paper eq. (5):
+    r"""DLS (Wampler; Nakamura–Hanafusa), the minimiser of paper eq. (5).
 
     .. math:: \min_{\dot q}\ \|\dot x - J\dot q\|^2 + \lambda^2\|\dot q\|^2
               \;\Rightarrow\; \dot q = J^\top(JJ^\top + \lambda^2 I)^{-1}\dot x

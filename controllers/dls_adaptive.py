@@ -8,12 +8,14 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.damping import damped_least_squares
+
+from .damping import damped_least_squares
 
 
 class AdaptiveDampedLeastSquaresBackend(Backend):
-    r"""Singularity-robust inverse with manipulability-driven damping (Nakamura–Hanafusa 1986,
-    as used by Liu et al. and by the paper's Fig. 3).
+    r"""Singularity-robust inverse with manipulability-driven damping.
+
+    Nakamura–Hanafusa (1986), as used by Liu et al. and by the paper's Fig. 3:
 
     .. math::
         w = \sqrt{\det(JJ^\top)} = \prod_i \sigma_i,\qquad

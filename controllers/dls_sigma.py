@@ -8,7 +8,8 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.damping import damped_least_squares
+
+from .damping import damped_least_squares
 
 
 class SigmaDampedLeastSquaresBackend(Backend):

@@ -75,5 +75,5 @@ class KinematicState:
 
     @property
     def weakest_joint_direction(self) -> FloatArray:
-        """Right singular vector of σ_min, shape ``(nv,)``: the joint motion the task barely sees."""
+        """Right singular vector of σ_min, shape ``(nv,)``: joint motion the task barely sees."""
         return self.Vt[-1]

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.robots import PlanarArm
 from otmm_qp.state import KinematicState
+from otmm_qp_controllers.dls_adaptive import AdaptiveDampedLeastSquaresBackend
 from tests.conftest import make_backend
 
 ALL = ["pinv", "dls", "dls_adaptive", "dls_sigma", "sdls"]
@@ -59,7 +60,7 @@ def test_dls_tends_to_pinv_as_damping_vanishes() -> None:
 def test_adaptive_damping_follows_nakamura_hanafusa() -> None:
     arm = PlanarArm([1.0, 0.8])
     state = KinematicState.compute(arm, np.array([0.1, 0.01]))  # near stretched
-    backend = make_backend("dls_adaptive", alpha=0.003, w0=0.04)
+    backend = AdaptiveDampedLeastSquaresBackend(alpha=0.003, w0=0.04)
     w = float(np.prod(state.sigma))
     assert w == pytest.approx(abs(np.linalg.det(state.jacobian)))
     assert backend.damping_for(state) == pytest.approx(0.003 * (1 - w / 0.04) ** 2)

@@ -62,7 +62,8 @@ BAD = {
     ),
     "unreachable": (
         GOOD.replace("radius: 0.6", "radius: 0.7").replace("duration: 0.4", "duration: 10"),
-        r"experiments.0.trajectory: point \[1.7583, 0.4223\] at t = 3.97 s is outside the workspace of planar2",
+        r"experiments.0.trajectory: point \[1.7583, 0.4223\] at t = 3.97 s "
+        "is outside the workspace of planar2",
     ),
     "bad loop mode": (
         GOOD.replace("[clik]", "[open]"),

@@ -99,15 +99,19 @@ class ExperimentConfig(_Strict):
         return value
 
 
+def _default_loop_modes() -> list[LoopMode]:
+    return ["clik"]
+
+
 class SuiteConfig(_Strict):
     """A YAML file: shared defaults and the experiments."""
 
     name: str = Field("experiments", min_length=1)
     description: str = ""
     dt: float = Field(0.02, gt=0.0)
-    loop_modes: list[LoopMode] = Field(default_factory=lambda: ["clik"], min_length=1)
+    loop_modes: list[LoopMode] = Field(default_factory=_default_loop_modes, min_length=1)
     clik_gain: float = Field(10.0, ge=0.0)
-    metrics: MetricsConfig = Field(default_factory=MetricsConfig)
+    metrics: MetricsConfig = MetricsConfig()  # frozen, so a shared default is safe
     claims: Literal["paper"] | None = None
     experiments: list[ExperimentConfig] = Field(min_length=1)
 

@@ -2,12 +2,13 @@ r"""Run metrics, defined in one place.
 
 All speeds in [rad/s], errors in [m] (position) or [rad] (orientation), times in [s].
 
-* ``max_error`` / ``rms_error``: max and RMS of ‖e_pos‖ over the run; ``*_window``: the same
-  within ``±window/2`` [s] of the time of minimum σ_min (the "singular window").
-* ``max_joint_speed``: :math:`\max_k \|\dot q_k\|_\infty`, excluding the first step, whose jump
+* ``max_error`` / ``rms_error``: max and RMS of ‖e_pos‖ over the run; ``*_window``:
+  the same within ``±window/2`` [s] of the time of minimum σ_min (the "singular window").
+* ``max_joint_speed``: :math:`\max_{k\ge1} \|\dot q_k\|_\infty`, excluding step 0, whose jump
   from rest is reported as ``initial_jump`` = :math:`\|\dot q_0\|_\infty`.
-* ``chattering``: :math:`\sum_{k\ge 2}\|\dot q_k - \dot q_{k-1}\|_1` (the first step's jump
-  excluded, it is the initial jump); ``max_jump``: :math:`\max_{k\ge 2}\|\dot q_k-\dot q_{k-1}\|_\infty`.
+* ``chattering``: :math:`\sum_{k\ge 1}\|\dot q_k - \dot q_{k-1}\|_1` (steps from 0; the jump
+  from rest at k = 0 is the initial jump); ``max_jump``: the largest
+  :math:`\|\dot q_k-\dot q_{k-1}\|_\infty`, k ≥ 1.
 * ``accel_sign_changes``: number of sign changes of each joint's acceleration
   :math:`(\dot q_k - \dot q_{k-1})/dt`, summed over joints, ignoring |accel| below 1e-6 rad/s².
 * ``min_sigma`` and ``t_min_sigma``; ``steps_below_sigma_s``: steps with σ_min < σ_S.

@@ -177,7 +177,10 @@ def _improves(
     if not a.exercised:
         return Verdict(claim, mode, NOT_EXERCISED, f"σ_min never below σ_S = {judge.sigma_s}")
     ok = a.peak < b.peak and a.jump_window < b.jump_window and not a.blow_up
-    evidence = f"peak {a.peak:.3g} vs {b.peak:.3g} rad/s; window jump {a.jump_window:.3g} vs {b.jump_window:.3g} rad/s"
+    evidence = (
+        f"peak {a.peak:.3g} vs {b.peak:.3g} rad/s; "
+        f"window jump {a.jump_window:.3g} vs {b.jump_window:.3g} rad/s"
+    )
     return Verdict(claim, mode, HOLDS if ok else FAILS, evidence)
 
 
@@ -236,7 +239,8 @@ def write_claims(verdicts: list[Verdict], path: Path) -> None:
     lines = [
         "# The paper's claims, judged from these runs",
         "",
-        "Computed by `otmm_qp/output/claims.py` from the metrics of this run; never written by hand.",
+        "Computed by `otmm_qp/output/claims.py` from the metrics of this run; "
+        "never written by hand.",
         "",
         "Criteria" + doc.replace(":math:", ""),
         "| claim | loop mode | verdict | evidence |",

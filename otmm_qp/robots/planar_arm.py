@@ -30,7 +30,7 @@ class PlanarArm(Robot):
 
     def __init__(
         self,
-        link_lengths: Sequence[float],
+        link_lengths: Sequence[float] | FloatArray,
         limits: Sequence[Sequence[float]] | None = None,
         velocity_limits: Sequence[float] | None = None,
     ) -> None:

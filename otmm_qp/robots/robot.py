@@ -49,7 +49,7 @@ class Robot(abc.ABC):
     @property
     @abc.abstractmethod
     def position_limits(self) -> tuple[FloatArray, FloatArray]:
-        """Joint position limits ``(lower, upper)`` [rad or m], shapes ``(nv,)``; ±inf when unbounded."""
+        """Joint position limits ``(lower, upper)`` [rad or m], shapes ``(nv,)``; ±inf: none."""
 
     @property
     @abc.abstractmethod
@@ -58,9 +58,9 @@ class Robot(abc.ABC):
 
     @abc.abstractmethod
     def kinematics(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Task value and Jacobian at ``q``.
+        r"""Task value and Jacobian at ``q``.
 
-        .. math:: x = f(q), \\qquad J = \\partial f / \\partial q \\in \\mathbb{R}^{n \\times nv}
+        .. math:: x = f(q), \qquad J = \partial f / \partial q \in \mathbb{R}^{n \times nv}
 
         Args:
             q: Configuration, shape ``(nq,)``.

@@ -186,3 +186,15 @@ class PeerModelMismatch(OtmmError):
             f"peer {peer!r}: its model puts the end effector {position_error:.3g} m and "
             f"{orientation_error:.3g} rad away from Pinocchio's"
         )
+
+
+class NonFiniteState(OtmmError):
+    """A kinematic quantity became NaN or inf (e.g. after a blow-up diverged the arm).
+
+    Attributes:
+        quantity: What is non-finite.
+    """
+
+    def __init__(self, quantity: str, detail: str) -> None:
+        self.quantity = quantity
+        super().__init__(f"{quantity}: {detail}")

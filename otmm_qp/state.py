@@ -5,8 +5,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
+from otmm_qp.exceptions import NonFiniteState
 from otmm_qp.robots.robot import FloatArray, Robot
+
+_unit_weights: dict[int, FloatArray] = {}
+
+
+def thin_svd(matrix: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Thin SVD ``(U (n, k), σ (k,), Vᵀ (k, m))`` of a finite matrix, ``k = min(n, m)``.
+
+    Calls LAPACK ``dgesdd`` directly (about half the overhead of ``numpy.linalg.svd`` on the
+    small matrices of arm Jacobians) and falls back to ``dgesvd`` if it does not converge.
+    """
+    U, sigma, Vt, info = lapack.dgesdd(matrix, compute_uv=1, full_matrices=0)
+    if info != 0:
+        U, sigma, Vt, info = lapack.dgesvd(matrix, compute_uv=1, full_matrices=0)
+    return U, sigma, Vt
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,11 +67,17 @@ class KinematicState:
         """
         x, jacobian = robot.kinematics(q)
         if weight is None:
-            weight = np.ones(jacobian.shape[0])
+            n = jacobian.shape[0]
+            weight = _unit_weights.get(n)
+            if weight is None:
+                weight = _unit_weights.setdefault(n, np.ones(n))
+                weight.flags.writeable = False
             task_jacobian = jacobian
         else:
             task_jacobian = weight[:, None] * jacobian
-        U, sigma, Vt = np.linalg.svd(task_jacobian, full_matrices=False)
+        if not np.isfinite(task_jacobian).all():
+            raise NonFiniteState("jacobian", "contains NaN or inf; the configuration diverged")
+        U, sigma, Vt = thin_svd(task_jacobian)
         return cls(q, x, jacobian, weight, task_jacobian, U, sigma, Vt)
 
     @property

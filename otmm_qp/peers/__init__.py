@@ -1,0 +1,14 @@
+"""Peer IK libraries as backends in the same loop: pink, mink (MuJoCo) and Drake.
+
+Installed with ``pip install "otmm-qp[peers]"`` and registered as the ``pink``, ``mink`` and
+``drake`` entry points of ``otmm_qp.backends``. The adapters import their library only when
+constructed, so a missing peer raises :class:`~otmm_qp.exceptions.PeerUnavailable` (the
+runner reports the controller as skipped with the install hint) and never breaks the rest.
+"""
+
+from otmm_qp.peers.drake_backend import DrakeBackend
+from otmm_qp.peers.mink_backend import MinkBackend
+from otmm_qp.peers.peer_backend import INSTALL_HINTS, PeerBackend, require
+from otmm_qp.peers.pink_backend import PinkBackend
+
+__all__ = ["INSTALL_HINTS", "DrakeBackend", "MinkBackend", "PeerBackend", "PinkBackend", "require"]

@@ -1,0 +1,135 @@
+"""Peer adapter: Drake's ``DoDifferentialInverseKinematics`` on the same URDF, base welded."""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+import numpy as np
+
+from otmm_qp.backends.backend import (
+    STATUS_INFEASIBLE,
+    STATUS_OK,
+    STATUS_STUCK,
+    BackendOutput,
+)
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, planar_urdf, root_link
+from otmm_qp.peers.peer_backend import PeerBackend, require
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.state import KinematicState
+
+#: Name of the frame added at the end effector of the Drake plant.
+DRAKE_FRAME = "otmm_ee"
+
+
+class DrakeBackend(PeerBackend):
+    r"""Drake's direction-preserving differential IK (``DoDifferentialInverseKinematics``).
+
+    .. math::
+        \max_{\dot q,\ \alpha}\ 100\,\alpha - \|P\dot q\|^2 \quad\text{s.t.}\quad
+        J\dot q = \alpha V,\ 0 \le \alpha \le 1,\ \text{position and velocity limits}
+
+    with ``V`` the commanded spatial velocity :math:`(\omega, v)` of the end-effector frame
+    in world axes (the rows the task commands are selected by Drake's velocity flag: x, y
+    for planar arms, the linear part for position tasks, all six for poses) and ``P`` a
+    basis of the Jacobian null space. A tiny realisable fraction α is reported by Drake as
+    ``stuck``; no solution as ``infeasible`` (zero joint speed).
+
+    The plant is parsed from the arm's URDF (generated for a :class:`PlanarArm`, rewritten by
+    :func:`~otmm_qp.peers.models.peer_urdf` for a :class:`PinocchioArm`), its root link
+    welded to the world. The end-effector frame is added at the Pinocchio frame placement.
+
+    Args:
+        stuck_scaling: α below which Drake reports ``stuck``, in ``[0, 1)``.
+
+    Raises:
+        PeerUnavailable: pydrake is not installed.
+        ParameterError: ``stuck_scaling`` out of range.
+    """
+
+    name = "drake"
+    peer = "drake"
+
+    def __init__(self, stuck_scaling: float = 0.01) -> None:
+        require("drake", ["pydrake.multibody.inverse_kinematics", "pydrake.multibody.plant"])
+        if not 0.0 <= stuck_scaling < 1.0:
+            raise ParameterError("stuck_scaling", f"must be in [0, 1), got {stuck_scaling}")
+        self.stuck_scaling = float(stuck_scaling)
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""
+        # Drake's bundled stubs mistype numpy arguments; use the modules untyped.
+        math: Any = importlib.import_module("pydrake.math")
+        ik: Any = importlib.import_module("pydrake.multibody.inverse_kinematics")
+        parsing: Any = importlib.import_module("pydrake.multibody.parsing")
+        plants: Any = importlib.import_module("pydrake.multibody.plant")
+        tree: Any = importlib.import_module("pydrake.multibody.tree")
+
+        super().bind(robot, dt)
+        pin_model, frame_id = pinocchio_model(robot)
+        urdf = planar_urdf(robot) if isinstance(robot, PlanarArm) else peer_urdf(robot, False)
+        plant = plants.MultibodyPlant(time_step=0.0)
+        parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root_link(urdf)))
+        frame = pin_model.frames[frame_id]
+        parent = str(pin_model.names[frame.parentJoint])
+        body_frame = plant.GetJointByName(parent).child_body().body_frame()
+        placement = math.RigidTransform(np.asarray(frame.placement.homogeneous))
+        plant.AddFrame(tree.FixedOffsetFrame(DRAKE_FRAME, body_frame, placement))
+        plant.Finalize()
+        self._plant = plant
+        self._context = plant.CreateDefaultContext()
+        self._frame = plant.GetFrameByName(DRAKE_FRAME)
+        joints = [plant.GetJointByName(name) for name in robot.joint_names]
+        self._map = JointMap(
+            np.array([j.position_start() for j in joints]),
+            np.array([j.velocity_start() for j in joints]),
+            plant.num_positions(),
+        )
+        self._q0 = plant.GetPositions(self._context).copy()
+        parameters = ik.DifferentialInverseKinematicsParameters(
+            plant.num_positions(), plant.num_velocities()
+        )
+        parameters.set_time_step(dt)
+        lower, upper = robot.position_limits
+        q_low = np.full(plant.num_positions(), -np.inf)
+        q_high = np.full(plant.num_positions(), np.inf)
+        q_low[self._map.position_index], q_high[self._map.position_index] = lower, upper
+        parameters.set_joint_position_limits((q_low, q_high))
+        v_max = np.full(plant.num_velocities(), np.inf)
+        v_max[self._map.velocity_index] = robot.velocity_limits
+        parameters.set_joint_velocity_limits((-v_max, v_max))
+        parameters.set_maximum_scaling_to_report_stuck(self.stuck_scaling)
+        # Flags over (ωx, ωy, ωz, vx, vy, vz): the rows the task commands.
+        if isinstance(robot, PlanarArm):
+            flags = [False, False, False, True, True, False]
+        elif robot.task_kind == "pose":
+            flags = [True] * 6
+        else:
+            flags = [False, False, False, True, True, True]
+        parameters.set_end_effector_velocity_flag(flags)
+        self._parameters = parameters
+        self._ik = ik
+        self._status = ik.DifferentialInverseKinematicsStatus
+
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
+        """Drake's joint velocity [rad/s], shape ``(nv,)``, for the commanded velocity."""
+        theta = self.robot.joint_coordinates(state.q)
+        self._plant.SetPositions(self._context, self._map.to_peer(theta, self._q0))
+        linear, angular = self.spatial_velocity(self.robot, self.physical_velocity(state, xdot))
+        result = self._ik.DoDifferentialInverseKinematics(
+            self._plant,
+            self._context,
+            np.concatenate([angular, linear]),  # V_WE = (ω, v), world axes
+            self._frame,
+            self._parameters,
+        )
+        if result.status == self._status.kNoSolutionFound or result.joint_velocities is None:
+            return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
+        qdot = self._map.from_peer_velocity(np.asarray(result.joint_velocities).ravel())
+        status = STATUS_STUCK if result.status == self._status.kStuck else STATUS_OK
+        return BackendOutput(qdot, status)

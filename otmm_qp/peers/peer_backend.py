@@ -1,0 +1,100 @@
+r"""Shared machinery of the peer adapters: availability checks and the task-velocity target.
+
+A peer library solves differential IK toward a *target pose*, not a task velocity. Each
+step the adapter turns the commanded task velocity :math:`\dot x` into the target the
+peer would have reached after one period :math:`dt` if it realised :math:`\dot x` exactly:
+
+.. math::
+    p^* = p + v\,dt, \qquad R^* = \exp(\omega\,dt)\,R
+
+(world-aligned linear velocity ``v`` of the frame origin [m/s] and angular velocity ``ω``
+[rad/s], the convention of :class:`~otmm_qp.robots.pinocchio_arm.PinocchioArm`; a position
+task has ``ω = 0`` and no orientation cost). The peer's joint step ``Δq`` toward that target
+gives the joint velocity ``q̇ = Δq/dt``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from otmm_qp.backends.backend import Backend
+from otmm_qp.exceptions import PeerUnavailable
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.state import KinematicState
+
+#: ``pip install`` hint shown when a peer is missing.
+INSTALL_HINTS: dict[str, str] = {
+    "pink": 'pip install "otmm-qp[peers]"  (or: pip install pin-pink)',
+    "mink": 'pip install "otmm-qp[peers]"  (or: pip install mink mujoco)',
+    "drake": 'pip install "otmm-qp[peers]"  (or: pip install drake)',
+}
+
+
+def require(peer: str, modules: Sequence[str]) -> None:
+    """Import ``modules`` or raise :class:`PeerUnavailable` with the install hint.
+
+    Raises:
+        PeerUnavailable: One of the modules cannot be imported.
+    """
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError as error:
+            raise PeerUnavailable(
+                peer, f"{INSTALL_HINTS[peer]} (import {module!r} failed: {error})"
+            ) from error
+
+
+class PeerBackend(Backend):
+    """A backend that delegates each step to a third-party IK library.
+
+    Subclasses import their library in ``__init__`` (via :func:`require`, so a missing peer
+    becomes :class:`PeerUnavailable` before the run starts), build the peer's model in
+    :meth:`bind` and implement :meth:`solve`.
+    """
+
+    #: Peer library name (``pink``, ``mink``, ``drake``).
+    peer: str = "peer"
+
+    @staticmethod
+    def physical_velocity(state: KinematicState, xdot: FloatArray) -> FloatArray:
+        r"""Un-weighted task velocity :math:`\dot x = W^{-1}\dot x_w`, shape ``(n,)``."""
+        return np.asarray(xdot, dtype=float) / state.weight
+
+    @staticmethod
+    def spatial_velocity(robot: Robot, xdot: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """World-aligned ``(v [m/s], ω [rad/s])``, shapes ``(3,)``, of a task velocity.
+
+        Planar arms: ``v = (ẋ, ẏ, 0)``; position tasks: ``ω = 0``; pose tasks: ``(v, ω)``.
+        """
+        linear = np.zeros(3)
+        angular = np.zeros(3)
+        if isinstance(robot, PlanarArm):
+            linear[:2] = xdot
+        elif robot.task_kind == "pose":
+            linear[:] = xdot[:3]
+            angular[:] = xdot[3:]
+        else:
+            linear[:] = xdot[:3]
+        return linear, angular
+
+    @staticmethod
+    def advanced_pose(
+        pose: FloatArray, linear: FloatArray, angular: FloatArray, dt: float
+    ) -> FloatArray:
+        r"""Target ``T*`` (4, 4): :math:`p^* = p + v\,dt,\ R^* = \exp(\omega\,dt) R`."""
+        target = np.array(pose, dtype=float)
+        target[:3, 3] += linear * dt
+        target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
+        return target
+
+    def orientation_weight(self) -> float:
+        """1 for pose tasks, 0 when only the position is commanded."""
+        return (
+            1.0 if self.robot.task_kind == "pose" and not isinstance(self.robot, PlanarArm) else 0.0
+        )

@@ -1,0 +1,167 @@
+"""Peer adapters (pink, mink, drake): models, skipping, and tracking against our ``qp``."""
+
+from __future__ import annotations
+
+from importlib import metadata
+from typing import Any
+
+import numpy as np
+import pytest
+
+from otmm_qp import registry
+from otmm_qp.config.load import parse_config
+from otmm_qp.exceptions import PeerUnavailable, RobotLoadError
+from otmm_qp.peers import models
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.runner import run_suite
+
+PEER_ENTRY_POINTS = {
+    "pink": "otmm_qp.peers.pink_backend:PinkBackend",
+    "mink": "otmm_qp.peers.mink_backend:MinkBackend",
+    "drake": "otmm_qp.peers.drake_backend:DrakeBackend",
+}
+PEER_MODULES = {"pink": "pink", "mink": "mink", "drake": "pydrake"}
+#: Stated tolerance: a peer's RMS / max position error may exceed qp's by at most this [m]
+#: (measured: |Δ rms| ≤ 1.4e-5 m on both scenarios).
+TRACKING_TOLERANCE = 2e-4
+#: Largest joint-trajectory difference to qp [rad] (measured: ≤ 2.2e-4 rad, pink, planar).
+JOINT_TOLERANCE = 1e-3
+
+PLANAR_SCENARIO: dict[str, Any] = {
+    "name": "planar3_circle",
+    "robot": {"type": "planar", "link_lengths": [1.0, 0.8, 0.6]},
+    "q0": [0.3, 0.9, 0.7],
+    "trajectory": {"type": "circle", "centre": [0.9, 1.6], "radius": 0.2, "period": 4.0},
+    "duration": 4.0,
+}
+PANDA_SCENARIO: dict[str, Any] = {
+    "name": "panda_pose_line",
+    "robot": {"type": "pinocchio", "name": "panda", "task": "pose"},
+    "q0": [0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8],
+    "trajectory": {"type": "pose_line", "end": [0.45, 0.1, 0.45], "duration": 1.5},
+    "duration": 2.0,
+    "dt": 0.01,
+}
+
+
+@pytest.fixture
+def peer_entry_points(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Register the peers as the pyproject entry points do (also when not yet installed)."""
+    original = metadata.entry_points
+
+    def patched(**params: Any) -> Any:
+        found = original(**params)
+        if params.get("group") != registry.BACKENDS:
+            return found
+        present = {e.name for e in found}
+        extra = [
+            metadata.EntryPoint(name, value, registry.BACKENDS)
+            for name, value in PEER_ENTRY_POINTS.items()
+            if name not in present
+        ]
+        return metadata.EntryPoints([*found, *extra])
+
+    monkeypatch.setattr(metadata, "entry_points", patched)
+    registry.clear_cache()
+    yield
+    registry.clear_cache()
+
+
+def run(scenario: dict[str, Any], backends: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    experiment = dict(scenario)
+    experiment["controllers"] = [{"name": name, "backend": spec} for name, spec in backends.items()]
+    suite = parse_config({"name": "peers", "loop_modes": ["clik"], "experiments": [experiment]})
+    return run_suite(suite, None, progress=None)
+
+
+# ------------------------------------------------------------------- models
+def test_planar_mjcf_is_in_radians_and_matches_pinocchio() -> None:
+    mujoco = pytest.importorskip("mujoco")
+    arm = PlanarArm([1.0, 0.8, 0.5], limits=[[-2.0, 2.0], [-1.5, 1.5], [-1.0, 1.0]])
+    model = mujoco.MjModel.from_xml_string(models.planar_mjcf(arm))
+    np.testing.assert_allclose(model.jnt_range, [[-2.0, 2.0], [-1.5, 1.5], [-1.0, 1.0]])
+    theta = np.array([0.4, -0.7, 1.1])
+    position, orientation = models.pose_mismatch(arm, theta)
+    assert position < 1e-12 and orientation < 1e-12
+    data = mujoco.MjData(model)
+    pose = models.mujoco_site_pose(model, data, models.PLANAR_FRAME, theta)
+    np.testing.assert_allclose(pose[:2, 3], arm.forward(theta), atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["panda", "ur5", "kinova"])
+def test_urdf_arm_in_mujoco_agrees_with_pinocchio(name: str) -> None:
+    pytest.importorskip("mujoco")
+    from otmm_qp.robots.pinocchio_arm import PinocchioArm
+
+    arm = PinocchioArm(name=name)
+    lower, upper = arm.position_limits
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        theta = rng.uniform(np.maximum(lower, -3.0), np.minimum(upper, 3.0))
+        position, orientation = models.pose_mismatch(arm, theta)
+        assert position < 1e-9 and orientation < 1e-9
+
+
+def test_package_uris_are_rewritten_and_locked_joints_fixed() -> None:
+    from otmm_qp.robots.pinocchio_arm import PinocchioArm
+
+    arm = PinocchioArm(name="panda")
+    text = models.peer_urdf(arm)
+    assert "package://" not in text
+    assert 'name="panda_finger_joint1" type="fixed"' in text
+    assert 'name="panda_joint1" type="revolute"' in text
+    assert "<collision>" not in models.peer_urdf(arm, keep_geometry=False)
+
+
+def test_unresolvable_package_uri_names_the_uri() -> None:
+    with pytest.raises(RobotLoadError, match=r"cannot resolve 'package://nope/a.stl'; searched /x"):
+        models.resolve_package_uri("package://nope/a.stl", ["/x"])
+
+
+# ------------------------------------------------------------------ skipping
+def test_missing_peer_is_skipped_with_hint(
+    peer_entry_points: None, monkeypatch: pytest.MonkeyPatch, tmp_path: Any
+) -> None:
+    import otmm_qp.peers.peer_backend as peer_backend
+
+    real_import = peer_backend.importlib.import_module
+
+    def no_pink(name: str) -> Any:
+        if name == "pink":
+            raise ImportError("No module named 'pink'")
+        return real_import(name)
+
+    monkeypatch.setattr(peer_backend.importlib, "import_module", no_pink)
+    with pytest.raises(PeerUnavailable, match=r"pip install \"otmm-qp\[peers\]\""):
+        peer_backend.require("pink", ["pink"])
+    experiment = dict(PLANAR_SCENARIO, duration=0.2)
+    experiment["controllers"] = [
+        {"name": "pink", "backend": {"type": "pink"}},
+        {"name": "pinv", "backend": {"type": "pinv"}},
+    ]
+    suite = parse_config({"name": "skip", "loop_modes": ["clik"], "experiments": [experiment]})
+    outcome = run_suite(suite, tmp_path, progress=None)
+    assert [r.result.controller for r in outcome.records] == ["pinv"]
+    assert [s.name for _, s in outcome.skipped] == ["pink"]
+    summary = (tmp_path / "summary.csv").read_text()
+    assert "skipped: peer 'pink' is not installed" in summary
+    assert outcome.errors == []
+
+
+# ------------------------------------------------------------------ tracking
+@pytest.mark.parametrize("peer", sorted(PEER_ENTRY_POINTS))
+@pytest.mark.parametrize("scenario", [PLANAR_SCENARIO, PANDA_SCENARIO], ids=["planar", "panda"])
+def test_peer_tracks_like_qp(peer_entry_points: None, peer: str, scenario: dict[str, Any]) -> None:
+    pytest.importorskip(PEER_MODULES[peer])
+    if peer == "mink":
+        pytest.importorskip("mujoco")
+    outcome = run(scenario, {peer: {"type": peer}, "qp": {"type": "qp", "solver": "daqp"}})
+    assert outcome.errors == [] and outcome.skipped == []
+    ours = outcome.find(scenario["name"], "clik", "qp")
+    theirs = outcome.find(scenario["name"], "clik", peer)
+    assert ours is not None and theirs is not None
+    m_ours, m_theirs = ours.metrics, theirs.metrics
+    assert m_theirs["status_nonfinite"] == 0 and not m_theirs["blow_up"]
+    assert m_theirs["rms_error"] <= m_ours["rms_error"] + TRACKING_TOLERANCE
+    assert m_theirs["max_error"] <= m_ours["max_error"] + TRACKING_TOLERANCE
+    assert float(np.max(np.abs(theirs.result.q - ours.result.q))) <= JOINT_TOLERANCE

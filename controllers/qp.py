@@ -193,7 +193,7 @@ class QpBackend(Backend):
                 -np.ones(nv),
                 np.ones(nv),
                 verbose=False,
-                polish=True,
+                polishing=True,
                 eps_abs=1e-10,
                 eps_rel=1e-10,
                 max_iter=20000,
@@ -317,7 +317,7 @@ class QpBackend(Backend):
         solver = self._direct
         rows, cols = self._triu
         solver.update(Px=problem.P[rows, cols], q=problem.q, l=problem.lb, u=problem.ub)
-        result = solver.solve()
+        result = solver.solve(raise_error=False)
         if result.info.status_val not in (1, 2):  # solved, solved inaccurate
             return None
         return np.array(result.x)

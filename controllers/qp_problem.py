@@ -16,6 +16,7 @@ Building (:func:`build_qp`) is kept apart from solving (the backends).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -33,7 +34,7 @@ BIG = 1e9
 SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12},
     "daqp": {},
-    "osqp": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polish": True, "max_iter": 20000},
+    "osqp": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polishing": True, "max_iter": 20000},
     "proxqp": {"eps_abs": 1e-12, "eps_rel": 0.0, "max_iter": 100000},
     "quadprog": {},
 }
@@ -61,7 +62,10 @@ def solve_with_qpsolvers(problem: qpsolvers.Problem, solver: str) -> FloatArray 
             problem.lb,
             problem.ub,
         )
-    solution = qpsolvers.solve_problem(problem, solver=solver, **SOLVER_OPTIONS.get(solver, {}))
+    with warnings.catch_warnings():
+        # osqp 1.x warns that solve()'s raise_error default will change; qpsolvers calls it.
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
+        solution = qpsolvers.solve_problem(problem, solver=solver, **SOLVER_OPTIONS.get(solver, {}))
     return solution.x if solution.found and solution.x is not None else None
 
 

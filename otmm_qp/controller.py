@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -20,7 +21,7 @@ class ControllerOutput(NamedTuple):
         qdot: Joint velocity [rad/s], shape ``(nv,)``, always finite.
         xdot_filtered: Filtered task velocity in physical units, shape ``(n,)``.
         reports: One :class:`FilterReport` per filter.
-        backend: What the backend returned (before the finite-value guard).
+        backend: What the backend returned (status ``nonfinite`` if the guard replaced q̇).
     """
 
     qdot: FloatArray
@@ -65,14 +66,17 @@ class Controller:
         Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
         so NaN/inf never leave a step.
         """
-        weighted = state.weight * xdot
+        unit = state.task_jacobian is state.jacobian  # no task weight: skip the scaling
+        weighted = xdot if unit else state.weight * xdot
         reports = []
         for task_filter in self.filters:
             weighted, report = task_filter.apply(state, weighted)
             reports.append(report)
         result = self.backend.solve(state, weighted, qdot_prev)
         qdot = result.qdot
-        if not np.all(np.isfinite(qdot)):
+        # One dot product: NaN/inf (or |q̇| beyond 1e154) make it non-finite.
+        if not math.isfinite(float(qdot @ qdot)):
             qdot = np.zeros_like(qdot_prev)
-            result = result._replace(status=STATUS_NONFINITE)
-        return ControllerOutput(qdot, weighted / state.weight, tuple(reports), result)
+            result = result._replace(qdot=qdot, status=STATUS_NONFINITE)
+        filtered = weighted if unit else weighted / state.weight
+        return ControllerOutput(qdot, filtered, tuple(reports), result)

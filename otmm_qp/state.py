@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,8 @@ def thin_svd(matrix: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     U, sigma, Vt, info = lapack.dgesdd(matrix, compute_uv=1, full_matrices=0)
     if info != 0:
         U, sigma, Vt, info = lapack.dgesvd(matrix, compute_uv=1, full_matrices=0)
+        if info != 0:  # only NaN/inf input gets here: report it through σ
+            sigma = np.full(min(matrix.shape), np.nan)
     return U, sigma, Vt
 
 
@@ -75,9 +78,10 @@ class KinematicState:
             task_jacobian = jacobian
         else:
             task_jacobian = weight[:, None] * jacobian
-        if not np.isfinite(task_jacobian).all():
-            raise NonFiniteState("jacobian", "contains NaN or inf; the configuration diverged")
         U, sigma, Vt = thin_svd(task_jacobian)
+        # NaN/inf anywhere in J shows in σ_max (LAPACK propagates it): one scalar check.
+        if sigma.size and not math.isfinite(sigma[0]):
+            raise NonFiniteState("jacobian", "contains NaN or inf; the configuration diverged")
         return cls(q, x, jacobian, weight, task_jacobian, U, sigma, Vt)
 
     @property

@@ -20,6 +20,7 @@ STATUS_INFEASIBLE: Final = "infeasible"
 STATUS_STUCK: Final = "stuck"
 #: The backend returned non-finite values; the step was replaced by zero joint speed.
 STATUS_NONFINITE: Final = "nonfinite"
+_TINY: Final = float(np.finfo(float).tiny)
 STATUSES: Final = (STATUS_OK, STATUS_BOUNDED, STATUS_INFEASIBLE, STATUS_STUCK, STATUS_NONFINITE)
 
 
@@ -85,7 +86,12 @@ def truncated_pseudoinverse_apply(
     An exactly singular ``J`` thus uses only its achievable rows (the paper's case).
     """
     sigma = state.sigma
-    cutoff = rcond * (float(sigma[0]) if sigma.size else 0.0)
-    keep = sigma > max(cutoff, np.finfo(float).tiny)
-    coefficients = (state.U[:, keep].T @ xdot) / sigma[keep]
+    if not sigma.size:
+        return np.zeros(state.Vt.shape[1])
+    cutoff = max(rcond * float(sigma[0]), _TINY)
+    if sigma[-1] > cutoff:  # full rank: no masking needed (the common case)
+        result: FloatArray = state.Vt.T @ ((xdot @ state.U) / sigma)
+        return result
+    keep = sigma > cutoff
+    coefficients = (xdot @ state.U[:, keep]) / sigma[keep]
     return np.asarray(state.Vt[keep].T @ coefficients, dtype=float)

@@ -2,6 +2,7 @@ r"""On-line Task Modification Method (OTMM), paper eq. (8), generalised to coran
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
@@ -80,18 +81,16 @@ class OtmmFilter(TaskFilter):
         U, sigma = _full_left_basis(state)
         n = sigma.size
         if self.corank == 1:
-            indices = [n - 1]
-        else:
-            indices = [i for i in range(n) if sigma[i] <= self.sigma_s]
-        modified = np.array(xdot, dtype=float)
-        p_max = 0.0
-        for i in indices:
-            p_i = self.p(float(sigma[i]))
-            u_i = U[:, i]
-            modified -= p_i * float(u_i @ xdot) * u_i
-            p_max = max(p_max, p_i)
-        removed = float(np.linalg.norm(xdot - modified))
-        return FilterOutput(modified, FilterReport(True, sigma_min, p_max, removed))
+            first = n - 1
+        else:  # σ is sorted descending: the filtered ones are a tail
+            first = int(np.searchsorted(-sigma, -self.sigma_s, side="left"))
+        basis = U[:, first:]  # (n, k) the u_i filtered
+        p = np.array([self.p(float(s)) for s in sigma[first:]])  # (k,)
+        removed_coefficients = p * (xdot @ basis)  # p_i (u_iᵀẋ)
+        modified = xdot - basis @ removed_coefficients
+        # The u_i are orthonormal, so ‖ẋ − ẋ_m‖ = ‖p ⊙ Uᵀẋ‖.
+        removed = math.sqrt(float(removed_coefficients @ removed_coefficients))
+        return FilterOutput(modified, FilterReport(True, sigma_min, float(p.max()), removed))
 
 
 def _full_left_basis(state: KinematicState) -> tuple[FloatArray, FloatArray]:

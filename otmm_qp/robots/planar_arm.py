@@ -64,6 +64,9 @@ class PlanarArm(Robot):
                 raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s]")
             self._velocity = speeds
         self._names = tuple(f"joint{i + 1}" for i in range(m))
+        # Matrix forms of the cumulative sums keep kinematics() to a few numpy calls.
+        self._prefix_sum = np.tril(np.ones((m, m)))  # θ = L q
+        self._suffix_sum = np.triu(np.ones((m, m))).T  # column j of (links @ S): Σ_{i≥j}
         # Reach annulus: r_max = Σl, r_min = max(0, 2·max(l) − Σl).
         self.reach_max = float(lengths.sum())
         self.reach_min = float(max(0.0, 2.0 * lengths.max() - lengths.sum()))
@@ -90,15 +93,12 @@ class PlanarArm(Robot):
 
     def kinematics(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """End-effector position [m], shape ``(2,)``, and Jacobian, shape ``(2, m)``."""
-        theta = np.cumsum(q)
-        dx = self.link_lengths * np.cos(theta)  # (m,) link x-extents [m]
-        dy = self.link_lengths * np.sin(theta)
-        x = np.array([dx.sum(), dy.sum()])
-        # Column j sums the links from j outward: reverse cumulative sums.
-        jacobian = np.empty((2, theta.size))
-        jacobian[0] = -np.cumsum(dy[::-1])[::-1]
-        jacobian[1] = np.cumsum(dx[::-1])[::-1]
-        return x, jacobian
+        theta = self._prefix_sum @ q  # θ_i = Σ_{j≤i} q_j, (m,)
+        links = self.link_lengths * np.array([np.cos(theta), np.sin(theta)])  # (2, m) [m]
+        # Column j sums the links from j outward, rotated by +90°: (−Σy, Σx).
+        outward = links @ self._suffix_sum  # (2, m)
+        jacobian = np.array([-outward[1], outward[0]])
+        return outward[:, 0].copy(), jacobian
 
     def can_reach(self, x: FloatArray) -> bool:
         """Whether ``x`` [m] lies in the reach annulus ``r_min ≤ ‖x‖ ≤ r_max``."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -102,7 +103,9 @@ def simulate(
         if output.reports:
             p_log[k] = max(r.p for r in output.reports)
             active_log[k] = any(r.active for r in output.reports)
-            removed_log[k] = float(np.linalg.norm(state.weight * (command - output.xdot_filtered)))
+            if active_log[k]:
+                difference = state.weight * (command - output.xdot_filtered)
+                removed_log[k] = math.sqrt(float(difference @ difference))
         damping_log[k] = output.backend.damping
         scale_log[k] = output.backend.scale
         weak_log[k] = abs(float(state.weakest_joint_direction @ qdot))

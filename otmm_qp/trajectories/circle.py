@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -87,8 +88,10 @@ class CircleTrajectory(Trajectory):
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Position [m] and velocity [m/s] on the circle at ``t`` [s]."""
-        rate = self.sign * 2.0 * np.pi / self.period  # [rad/s]
+        rate = self.sign * 2.0 * math.pi / self.period  # [rad/s]
         phi = self.start_angle + rate * t
-        radial = np.cos(phi) * self.e1 + np.sin(phi) * self.e2
-        tangent = -np.sin(phi) * self.e1 + np.cos(phi) * self.e2
-        return self.centre + self.radius * radial, self.radius * rate * tangent
+        c, s = math.cos(phi), math.sin(phi)
+        r, v = self.radius, self.radius * rate
+        return self.centre + (r * c) * self.e1 + (r * s) * self.e2, (v * c) * self.e2 - (
+            v * s
+        ) * self.e1

@@ -7,13 +7,6 @@ from typing import Any, Literal
 
 import numpy as np
 import qpsolvers
-from otmm_qp_controllers.qp_problem import (
-    VelocityBox,
-    build_qp,
-    per_joint,
-    solve_with_qpsolvers,
-    velocity_box,
-)
 
 from otmm_qp.backends.backend import (
     STATUS_BOUNDED,
@@ -29,6 +22,13 @@ from otmm_qp.exceptions import (
 )
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp_controllers.qp_problem import (
+    VelocityBox,
+    build_qp,
+    per_joint,
+    solve_with_qpsolvers,
+    velocity_box,
+)
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
 POLICIES = ("raise", "hold", "dls")

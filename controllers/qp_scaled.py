@@ -7,13 +7,6 @@ from typing import Literal
 
 import numpy as np
 import qpsolvers
-from otmm_qp_controllers.qp_problem import (
-    BIG,
-    VelocityBox,
-    per_joint,
-    solve_with_qpsolvers,
-    velocity_box,
-)
 
 from otmm_qp.backends.backend import (
     STATUS_BOUNDED,
@@ -26,6 +19,13 @@ from otmm_qp.backends.backend import (
 from otmm_qp.exceptions import InfeasibleProblem, ParameterError, SolverNotFound
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp_controllers.qp_problem import (
+    BIG,
+    VelocityBox,
+    per_joint,
+    solve_with_qpsolvers,
+    velocity_box,
+)
 
 POLICIES = ("raise", "hold")
 #: qpsolvers backends that solve this near-LP reliably. ProxQP (proxsuite 0.8 through
@@ -66,8 +66,8 @@ def build_scaled_qp(
     nv = Vt.shape[1]
     keep = sigma > max(rcond * (float(sigma[0]) if sigma.size else 0.0), np.finfo(float).tiny)
     coefficients = U[:, keep].T @ xdot  # u_iᵀẋ, (r,)
-    outside = float(xdot @ xdot - coefficients @ coefficients)
-    alpha_max = 0.0 if outside > (1e-9) ** 2 * float(xdot @ xdot) else 1.0
+    outside = xdot - U[:, keep] @ coefficients  # part of ẋ outside range(J_w)
+    alpha_max = 0.0 if np.linalg.norm(outside) > 1e-9 * np.linalg.norm(xdot) else 1.0
     rows = np.hstack([sigma[keep, None] * Vt[keep], -coefficients[:, None]])  # (r, nv+1)
     rows /= np.linalg.norm(rows, axis=1, keepdims=True)
     hessian = regularization * np.eye(nv + 1)
@@ -202,9 +202,8 @@ class ScaledQpBackend(Backend):
         sigma = state.sigma
         keep = sigma > max(1e-10 * (float(sigma[0]) if sigma.size else 0.0), np.finfo(float).tiny)
         coefficients = state.U[:, keep].T @ xdot
-        inside_range = float(xdot @ xdot - coefficients @ coefficients) <= 1e-18 * float(
-            xdot @ xdot
-        )
+        outside = xdot - state.U[:, keep] @ coefficients
+        inside_range = np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(xdot)
         if inside_range:
             candidate = state.Vt[keep].T @ (coefficients / sigma[keep])
             if np.all(candidate >= lower) and np.all(candidate <= upper):

@@ -69,9 +69,8 @@ def main() -> None:
             fn()
             samples[k] = time.perf_counter() - start
         samples = samples[200:] * 1e6
-        print(
-            f"{label:45s} median {np.median(samples):6.1f} µs  p90 {np.percentile(samples, 90):6.1f} µs"
-        )
+        p90 = np.percentile(samples, 90)
+        print(f"{label:45s} median {np.median(samples):6.1f} µs  p90 {p90:6.1f} µs")
     for speed, regime in [(0.05, "limits inactive"), (5.0, "limits active")]:
         for name, controller in pipelines().items():
             t = run(controller, robot, speed)

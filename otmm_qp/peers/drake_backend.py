@@ -72,7 +72,9 @@ class DrakeBackend(PeerBackend):
         urdf = planar_urdf(robot) if isinstance(robot, PlanarArm) else peer_urdf(robot, False)
         plant = plants.MultibodyPlant(time_step=0.0)
         parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(root_link(urdf)))
+        base = root_link(urdf)
+        if base != "world":  # Drake merges a URDF link named "world" into its world body
+            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))
         frame = pin_model.frames[frame_id]
         parent = str(pin_model.names[frame.parentJoint])
         body_frame = plant.GetJointByName(parent).child_body().body_frame()

@@ -49,6 +49,8 @@ class Controller:
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Prepare for a run on ``robot`` with period ``dt`` [s]."""
+        for task_filter in self.filters:
+            task_filter.bind(robot, dt)
         self.backend.bind(robot, dt)
         self.reset()
 

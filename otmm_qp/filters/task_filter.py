@@ -5,7 +5,7 @@ from __future__ import annotations
 import abc
 from typing import NamedTuple
 
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
 
@@ -45,6 +45,9 @@ class TaskFilter(abc.ABC):
     @abc.abstractmethod
     def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:
         """Return the modified weighted task velocity, shape ``(n,)``, and a report."""
+
+    def bind(self, robot: Robot, dt: float) -> None:  # noqa: B027 - optional hook
+        """Attach the robot and the control period ``dt`` [s]; called once per run."""
 
     def reset(self) -> None:  # noqa: B027 - optional hook, stateless filters need nothing
         """Forget any state kept between steps (called at the start of each run)."""

@@ -2,6 +2,7 @@
 
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.line import ConstantVelocityLineTrajectory, QuinticLineTrajectory
+from otmm_qp.trajectories.pose import PoseCircleTrajectory, PoseLineTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory
 
 __all__ = [

@@ -8,6 +8,8 @@ from otmm_qp.trajectories.trajectory import Trajectory
 __all__ = [
     "CircleTrajectory",
     "ConstantVelocityLineTrajectory",
+    "PoseCircleTrajectory",
+    "PoseLineTrajectory",
     "QuinticLineTrajectory",
     "Trajectory",
 ]

@@ -1,0 +1,417 @@
+r"""``otmm-qp report RESULTS_DIR``: one self-contained HTML page and its Markdown twin.
+
+Reads ``summary.csv`` (required), ``claims.md`` (optional) and every ``*.png`` under the
+results folder, and writes ``report.html`` (inline CSS, figures base64-embedded, no external
+resource) and ``report.md`` (figures linked by relative path).
+
+Sections:
+
+1. **Comparison tables**, one per scenario (experiment × loop mode), columns
+   :data:`REPORT_COLUMNS`; in each column the best value (all lower-is-better) is marked
+   (``**bold**`` in Markdown, ``<td class="best">`` in HTML). Runs that stopped early or
+   blew up are not eligible for "best"; skipped runs (a missing peer) are listed with their
+   install hint.
+2. **Ranking** across scenarios by the *mean rank score*:
+
+   .. math::
+       \text{score}(c) = \frac{1}{|S_c|\,|M|}\sum_{s \in S_c}\sum_{m \in M}
+       \text{rank}_{s,m}(c)
+
+   where :math:`S_c` are the scenarios controller ``c`` ran in, :math:`M` the
+   :data:`RANKED_METRICS`, and :math:`\text{rank}_{s,m}` its 1-based rank among the
+   controllers of scenario ``s`` on metric ``m`` (ties share the lower rank; a run that blew
+   up or stopped early ranks last). Lower is better. Controllers are identified by name.
+3. **Claims verdict** (``claims.md``, verbatim).
+4. **Figures**.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from otmm_qp.exceptions import ConfigError
+
+#: ``(column, label, format)`` shown per scenario; every column is lower-is-better.
+REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("rms_error", "rms err [m]", ".2e"),
+    ("max_error", "max err [m]", ".2e"),
+    ("max_error_window", "max err window [m]", ".2e"),
+    ("max_joint_speed", "max ‖q̇‖∞ [rad/s]", ".3g"),
+    ("chattering", "chattering Σ‖Δq̇‖₁ [rad/s]", ".3g"),
+    ("max_jump", "max ‖Δq̇‖∞ [rad/s]", ".3g"),
+    ("position_violations", "limit viol. [steps]", ".0f"),
+    ("step_time_median_us", "median [µs/step]", ".1f"),
+)
+#: Metrics entering the ranking score.
+RANKED_METRICS = ("rms_error", "max_error_window", "max_joint_speed", "chattering")
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2rem auto;
+max-width:1300px;padding:0 1rem;color:#1d2430;line-height:1.45}
+h1{font-size:1.7rem;border-bottom:2px solid #2b5797;padding-bottom:.3rem}
+h2{font-size:1.3rem;margin-top:2.2rem;color:#2b5797}h3{font-size:1.05rem;margin-top:1.4rem}
+table{border-collapse:collapse;margin:.6rem 0 1rem;font-size:.86rem}
+th,td{border:1px solid #cdd3dc;padding:.28rem .55rem;text-align:right;white-space:nowrap}
+th{background:#eef2f7;text-align:center;white-space:normal}td:first-child,th:first-child{text-align:left}
+tr:nth-child(even) td{background:#fafbfd}td.best{background:#d7f2dc!important;font-weight:700}
+td.bad{color:#a4262c}td.name{white-space:normal;min-width:7rem;max-width:14rem}td.skip{color:#6b7280;font-style:italic;text-align:left}
+.note{color:#4b5563;font-size:.88rem}figure{margin:1rem 0 2rem}
+figure img{max-width:100%;border:1px solid #e5e7eb}figcaption{font-size:.85rem;color:#4b5563}
+.claims{background:#f8fafc;border-left:4px solid #2b5797;padding:.4rem 1rem}
+code{background:#eef2f7;padding:0 .25rem;border-radius:3px}
+#ranking-table td:nth-child(2){text-align:left}.claims table{font-size:.8rem}
+.scroll{overflow-x:auto}
+"""
+
+
+@dataclass
+class Row:
+    """One ``summary.csv`` row: identity, numeric metrics and status."""
+
+    experiment: str
+    loop_mode: str
+    controller: str
+    values: dict[str, float]
+    error_message: str
+    blow_up: bool
+    stuck_steps: int = 0
+    steps: int = 0
+
+    @property
+    def skipped(self) -> bool:
+        """The controller was skipped (a missing peer)."""
+        return self.error_message.startswith("skipped:")
+
+    @property
+    def stuck(self) -> bool:
+        """The backend reported ``stuck`` on more than half of the steps."""
+        return self.steps > 0 and 2 * self.stuck_steps > self.steps
+
+    @property
+    def eligible(self) -> bool:
+        """Completed, no blow-up, not mostly stuck: may hold a best value."""
+        return not self.error_message and not self.blow_up and not self.stuck
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+def read_summary(path: Path) -> list[Row]:
+    """Rows of ``summary.csv``.
+
+    Raises:
+        ConfigError: The file is missing or lacks the identity columns.
+    """
+    if not path.is_file():
+        raise ConfigError(str(path), "no summary.csv here; run an experiment first")
+    with path.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        required = {"experiment", "loop_mode", "controller"}
+        if not required <= set(reader.fieldnames or ()):
+            raise ConfigError(str(path), f"missing columns {', '.join(sorted(required))}")
+        rows = []
+        for record in reader:
+            rows.append(
+                Row(
+                    record["experiment"],
+                    record["loop_mode"],
+                    record["controller"],
+                    {key: _number(record.get(key, "")) for key, _, _ in REPORT_COLUMNS},
+                    record.get("error_message", "") or "",
+                    record.get("blow_up", "") == "True",
+                    int(_number(record.get("status_stuck", "")) or 0),
+                    int(_number(record.get("steps", "")) or 0),
+                )
+            )
+    return rows
+
+
+def group_scenarios(rows: Sequence[Row]) -> dict[tuple[str, str], list[Row]]:
+    """Rows by ``(experiment, loop_mode)``, in file order."""
+    groups: dict[tuple[str, str], list[Row]] = {}
+    for row in rows:
+        groups.setdefault((row.experiment, row.loop_mode), []).append(row)
+    return groups
+
+
+def best_values(rows: Sequence[Row]) -> dict[str, float]:
+    """Smallest finite value of each column among eligible rows.
+
+    NaN (nothing marked) when no row is eligible or all eligible rows tie.
+    """
+    best: dict[str, float] = {}
+    for key, _, _ in REPORT_COLUMNS:
+        values = [r.values[key] for r in rows if r.eligible and math.isfinite(r.values[key])]
+        tie = len(values) > 1 and min(values) == max(values)
+        best[key] = min(values) if values and not tie else math.nan
+    return best
+
+
+def ranking(rows: Sequence[Row]) -> list[tuple[str, float, int]]:
+    """``(controller, score, scenarios)`` sorted by the mean rank score (see module doc)."""
+    totals: dict[str, list[float]] = {}
+    scenario_count: dict[str, int] = {}
+    for group in group_scenarios(rows).values():
+        ran = [r for r in group if not r.skipped]
+        for row in ran:
+            scenario_count[row.controller] = scenario_count.get(row.controller, 0) + 1
+        for metric in RANKED_METRICS:
+
+            def key(row: Row, metric: str = metric) -> float:
+                value = row.values[metric]
+                return value if row.eligible and math.isfinite(value) else math.inf
+
+            ordered = sorted(key(r) for r in ran)
+            for row in ran:
+                rank = ordered.index(key(row)) + 1
+                totals.setdefault(row.controller, []).append(float(rank))
+    table = [(c, sum(v) / len(v), scenario_count[c]) for c, v in totals.items()]
+    return sorted(table, key=lambda item: (item[1], item[0]))
+
+
+def _format(value: float, spec: str) -> str:
+    if not math.isfinite(value):
+        return "–"
+    return format(value, spec)
+
+
+def _figures(results_dir: Path) -> list[Path]:
+    return sorted(p for p in results_dir.rglob("*.png") if p.is_file())
+
+
+# ---------------------------------------------------------------- Markdown
+def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
+    """The Markdown report (figures linked relative to ``results_dir``)."""
+    lines = [f"# Comparison report: {results_dir.name}", ""]
+    lines.append(
+        "Best value per column in **bold** (all columns: lower is better; runs that blew up "
+        "or stopped early are not eligible). Metric definitions: `otmm_qp/metrics/metrics.py`."
+    )
+    lines += ["", "## Comparison per scenario"]
+    for (experiment, mode), group in group_scenarios(rows).items():
+        best = best_values(group)
+        lines += ["", f"### {experiment} — {mode}", ""]
+        header = ["controller", *(label for _, label, _ in REPORT_COLUMNS)]
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|---|" + "---:|" * len(REPORT_COLUMNS))
+        for row in group:
+            if row.skipped:
+                cells = [row.controller, row.error_message] + [""] * (len(REPORT_COLUMNS) - 1)
+                lines.append("| " + " | ".join(cells) + " |")
+                continue
+            cells = [row.controller + _status_note(row)]
+            for key, _, spec in REPORT_COLUMNS:
+                text = _format(row.values[key], spec)
+                if row.eligible and row.values[key] == best[key]:
+                    text = f"**{text}**"
+                cells.append(text)
+            lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", "## Ranking across scenarios", ""]
+    lines.append(
+        "Score = mean rank over scenarios and the metrics "
+        + ", ".join(f"`{m}`" for m in RANKED_METRICS)
+        + " (1 = best; blown-up or stopped runs rank last). Lower is better."
+    )
+    lines += ["", "| rank | controller | score | scenarios |", "|---:|---|---:|---:|"]
+    for place, (controller, score, count) in enumerate(ranking(rows), start=1):
+        lines.append(f"| {place} | {controller} | {score:.2f} | {count} |")
+    lines += ["", "## Claims verdict", ""]
+    lines.append(_demote_headings(claims) if claims else "_No claims.md in this results folder._")
+    lines += ["", "## Figures", ""]
+    figures = _figures(results_dir)
+    if not figures:
+        lines.append("_No figures in this results folder._")
+    for figure in figures:
+        relative = figure.relative_to(results_dir).as_posix()
+        lines += [f"![{relative}]({relative})", ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _status_note(row: Row) -> str:
+    if row.blow_up:
+        return " (blow-up)"
+    if row.stuck:
+        return f" (stuck {row.stuck_steps}/{row.steps} steps)"
+    if row.error_message:
+        return f" (stopped: {row.error_message})"
+    return ""
+
+
+def _demote_headings(markdown: str) -> str:
+    """Shift claims.md headings below the report's own ``##`` level."""
+    return re.sub(r"^(#{1,4}) ", lambda m: "#" * (len(m.group(1)) + 2) + " ", markdown, flags=re.M)
+
+
+# -------------------------------------------------------------------- HTML
+def _inline(text: str) -> str:
+    """Escape, then render `` `code` ``, ``$math$`` (as code), ``**bold**`` and ``*em*``."""
+    parts = re.split(r"(``[^`]+``|`[^`]+`|\$[^$]+\$)", text)
+    out = []
+    for part in parts:
+        if len(part) > 1 and part[0] == part[-1] and part[0] in "`$":
+            out.append(f"<code>{html.escape(part.strip('`$'))}</code>")
+            continue
+        piece = html.escape(part)
+        piece = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", piece)
+        out.append(re.sub(r"(?<![\w*])\*(\S.*?)\*(?![\w*])", r"<em>\1</em>", piece))
+    return "".join(out)
+
+
+def markdown_to_html(markdown: str) -> str:
+    """Minimal Markdown → HTML for claims files: headings, tables, lists, paragraphs."""
+    out: list[str] = []
+    lines = markdown.splitlines()
+    i = 0
+    while i < len(lines):
+        line = lines[i].rstrip()
+        if not line.strip():
+            i += 1
+            continue
+        heading = re.match(r"^(#{1,6}) (.*)", line)
+        if heading:
+            level = min(len(heading.group(1)) + 2, 6)
+            out.append(f"<h{level}>{_inline(heading.group(2))}</h{level}>")
+            i += 1
+        elif line.lstrip().startswith("|"):
+            block = []
+            while i < len(lines) and lines[i].lstrip().startswith("|"):
+                block.append(lines[i].strip().strip("|"))
+                i += 1
+            cells = [[c.strip() for c in b.split("|")] for b in block]
+            body = [c for c in cells if not all(re.fullmatch(r":?-+:?", x) for x in c if x)]
+            parts = ["<table>"]
+            for r, row in enumerate(body):
+                tag = "th" if r == 0 else "td"
+                parts.append("<tr>" + "".join(f"<{tag}>{_inline(c)}</{tag}>" for c in row))
+            out.append("".join(parts) + "</table>")
+        elif re.match(r"^\s*[-*] ", line):
+            items: list[str] = []
+            while i < len(lines) and lines[i].strip():
+                if re.match(r"^\s*[-*] ", lines[i]):
+                    items.append(re.sub(r"^\s*[-*] ", "", lines[i]).strip())
+                else:  # continuation line of the current item
+                    items[-1] += " " + lines[i].strip()
+                i += 1
+            items = [f"<li>{_inline(text)}</li>" for text in items]
+            out.append("<ul>" + "".join(items) + "</ul>")
+        else:
+            paragraph = []
+            while (
+                i < len(lines) and lines[i].strip() and not re.match(r"^(#|\||\s*[-*] )", lines[i])
+            ):
+                paragraph.append(lines[i].strip())
+                i += 1
+            out.append(f"<p>{_inline(' '.join(paragraph))}</p>")
+    return "\n".join(out)
+
+
+def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
+    """The self-contained HTML report."""
+    title = f"Comparison report: {results_dir.name}"
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        '<p class="note">Best value per column highlighted (all columns: lower is better; '
+        "runs that blew up or stopped early are not eligible). Metric definitions: "
+        "<code>otmm_qp/metrics/metrics.py</code>.</p>",
+        '<h2 id="tables">Comparison per scenario</h2>',
+    ]
+    for (experiment, mode), group in group_scenarios(rows).items():
+        best = best_values(group)
+        parts.append(f"<h3>{html.escape(experiment)} — {html.escape(mode)}</h3>")
+        header = "".join(f"<th>{html.escape(label)}</th>" for _, label, _ in REPORT_COLUMNS)
+        table = [f'<table data-scenario="{html.escape(experiment)}/{html.escape(mode)}">']
+        table.append(f"<tr><th>controller</th>{header}</tr>")
+        for row in group:
+            name = f"<td>{html.escape(row.controller)}</td>"
+            if row.skipped:
+                table.append(
+                    f'<tr data-controller="{html.escape(row.controller)}">{name}'
+                    f'<td class="skip" colspan="{len(REPORT_COLUMNS)}">'
+                    f"{html.escape(row.error_message)}</td></tr>"
+                )
+                continue
+            note = html.escape(_status_note(row))
+            cells = [f'<td class="name">{html.escape(row.controller)}{note}</td>']
+            for key, _, spec in REPORT_COLUMNS:
+                value = row.values[key]
+                classes = []
+                if row.eligible and value == best[key]:
+                    classes.append("best")
+                if not row.eligible:
+                    classes.append("bad")
+                attr = f' class="{" ".join(classes)}"' if classes else ""
+                cells.append(f'<td data-key="{key}"{attr}>{_format(value, spec)}</td>')
+            table.append(f'<tr data-controller="{html.escape(row.controller)}">' + "".join(cells))
+        parts.append('<div class="scroll">' + "".join(table) + "</table></div>")
+    parts.append('<h2 id="ranking">Ranking across scenarios</h2>')
+    parts.append(
+        '<p class="note">Score = mean rank over scenarios and the metrics '
+        + ", ".join(f"<code>{m}</code>" for m in RANKED_METRICS)
+        + " (1 = best; blown-up or stopped runs rank last). Lower is better.</p>"
+    )
+    table = [
+        '<table id="ranking-table"><tr><th>rank</th><th>controller</th><th>score</th>'
+        "<th>scenarios</th></tr>"
+    ]
+    for place, (controller, score, count) in enumerate(ranking(rows), start=1):
+        table.append(
+            f"<tr><td>{place}</td><td>{html.escape(controller)}</td><td>{score:.2f}</td>"
+            f"<td>{count}</td></tr>"
+        )
+    parts.append("".join(table) + "</table>")
+    parts.append('<h2 id="claims">Claims verdict</h2>')
+    if claims:
+        parts.append(f'<div class="claims scroll">{markdown_to_html(claims)}</div>')
+    else:
+        parts.append('<p class="note">No claims.md in this results folder.</p>')
+    parts.append('<h2 id="figures">Figures</h2>')
+    figures = _figures(results_dir)
+    if not figures:
+        parts.append('<p class="note">No figures in this results folder.</p>')
+    for figure in figures:
+        data = base64.b64encode(figure.read_bytes()).decode("ascii")
+        caption = html.escape(figure.relative_to(results_dir).as_posix())
+        parts.append(
+            f'<figure><img alt="{caption}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{caption}</figcaption></figure>"
+        )
+    parts.append("</body></html>")
+    return "\n".join(parts) + "\n"
+
+
+def write_report(results_dir: Path) -> tuple[Path, Path]:
+    """Write ``report.html`` and ``report.md`` into ``results_dir``.
+
+    Args:
+        results_dir: A results folder holding ``summary.csv`` (and optionally ``claims.md``
+            and PNG figures, searched recursively).
+
+    Returns:
+        ``(html_path, markdown_path)``.
+
+    Raises:
+        ConfigError: No readable ``summary.csv``.
+    """
+    results_dir = Path(results_dir)
+    rows = read_summary(results_dir / "summary.csv")
+    claims_path = results_dir / "claims.md"
+    claims = claims_path.read_text() if claims_path.is_file() else None
+    html_path = results_dir / "report.html"
+    markdown_path = results_dir / "report.md"
+    html_path.write_text(render_html(results_dir, rows, claims))
+    markdown_path.write_text(render_markdown(results_dir, rows, claims))
+    return html_path, markdown_path

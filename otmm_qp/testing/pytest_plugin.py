@@ -115,4 +115,4 @@ def otmm_run(
         pytest.skip(str(outcome))
     if isinstance(outcome, ConfigError):
         pytest.fail(f"cannot build {otmm_controller.label}: {outcome}", pytrace=False)
-    return outcome  # type: ignore[no-any-return]
+    return outcome

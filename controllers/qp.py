@@ -23,6 +23,8 @@ from otmm_qp.exceptions import (
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.qp_problem import (
+    BIG,
+    BoxBuffers,
     VelocityBox,
     build_qp,
     per_joint,
@@ -33,12 +35,14 @@ from otmm_qp_controllers.qp_problem import (
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
 POLICIES = ("raise", "hold", "dls")
 #: Persistent, warm-started solver paths built once in :meth:`QpBackend.bind`.
-DIRECT_SOLVERS = ("direct_osqp", "direct_proxsuite")
+DIRECT_SOLVERS = ("direct_daqp", "direct_osqp", "direct_proxsuite")
 
 
 def available_solvers() -> list[str]:
     """Names accepted by ``solver``: installed qpsolvers backends plus the direct paths."""
     names = list(qpsolvers.available_solvers)
+    if "daqp" in names:
+        names.append("direct_daqp")
     if "proxqp" in names:
         names.append("direct_proxsuite")
     if "osqp" in names:
@@ -82,8 +86,10 @@ class QpBackend(Backend):
     Args:
         damping: ``λ > 0`` [task units² / (rad/s)²].
         solver: A qpsolvers name (``proxqp``, ``osqp``, ``daqp``, ``quadprog``,
-            ``clarabel``) or ``direct_proxsuite`` / ``direct_osqp`` (persistent solver
-            built once in :meth:`bind`, updated and warm started every step).
+            ``clarabel``) or ``direct_daqp`` / ``direct_proxsuite`` / ``direct_osqp``
+            (persistent solver built once in :meth:`bind`, updated in place and warm started
+            every step: daqp from the previous active set, proxsuite and osqp from the
+            previous primal-dual solution).
         limit_gain: ``g ∈ (0, 1]`` of the position-limit velocity bounds.
         acceleration_limit: ``a_max`` [rad/s²], scalar or shape ``(nv,)``; None: no limit.
         posture_weight: ``w_p ≥ 0`` of the posture cost (0: none).
@@ -96,7 +102,8 @@ class QpBackend(Backend):
     Attributes:
         problem: The :class:`qpsolvers.Problem` of the last step (built on access, also on
             fast-path steps), or None before the first step.
-        box: The :class:`VelocityBox` of the last step.
+        box: The :class:`VelocityBox` of the last step (built on access from the step's
+            inputs; the step itself only evaluates ``lb``/``ub`` into preallocated arrays).
         used_qp: Whether the last step called the QP solver.
     """
 
@@ -145,7 +152,8 @@ class QpBackend(Backend):
         self.q_nominal_param = None if q_nominal is None else np.asarray(q_nominal, dtype=float)
         self.infeasible_policy = infeasible_policy
         self.fast_path = bool(fast_path)
-        self.box: VelocityBox | None = None
+        self._box: VelocityBox | None = None
+        self._box_inputs: tuple[FloatArray, FloatArray] | None = None
         self.used_qp = False
         self._direct: Any = None
         self._direct_initialised = False
@@ -164,8 +172,23 @@ class QpBackend(Backend):
         self.acceleration_limit = per_joint(self.acceleration_limit_param, "acceleration_limit", nv)
         self.q_nominal = per_joint(self.q_nominal_param, "q_nominal", nv)
         self._euclidean = robot.nq == robot.nv
+        self._buffers = BoxBuffers(
+            robot.position_limits, robot.velocity_limits, dt, self.limit_gain,
+            self.acceleration_limit,
+        )  # fmt: skip
+        # Preallocated QP data of the direct paths, written in place each QP step.
+        self._hessian = np.empty((nv, nv))
+        self._diagonal = self._hessian.reshape(-1)[:: nv + 1]  # a view on the diagonal
+        self._linear = np.empty(nv)
+        self._qp_bounds = np.empty((2, nv))  # [lb, ub] clipped to ±BIG
+        self._qp_lower, self._qp_upper = self._qp_bounds[0], self._qp_bounds[1]
         self._direct = None
-        if self.solver == "direct_proxsuite":
+        if self.solver == "direct_daqp":
+            import daqp
+
+            self._direct = daqp.Model()
+            self._no_rows = np.zeros((0, nv))  # box-only: no general constraint rows
+        elif self.solver == "direct_proxsuite":
             import proxsuite
 
             qp = proxsuite.proxqp.dense.QP(nv, 0, 0, True)
@@ -205,24 +228,36 @@ class QpBackend(Backend):
         """Forget the warm start, the step counter and a defaulted nominal posture."""
         self._step = 0
         self._last = None
-        self.box = None
+        self._box = None
+        self._box_inputs = None
         self._posture_reference = self.q_nominal
         self._direct_initialised = False
 
     # ------------------------------------------------------------------ problem
     @property
+    def box(self) -> VelocityBox | None:
+        """The :class:`VelocityBox` of the last step, or None before the first step."""
+        if self._box is None and self._box_inputs is not None:
+            self._box = self._velocity_box(*self._box_inputs)
+        return self._box
+
+    def _velocity_box(self, theta: FloatArray, qdot_prev: FloatArray) -> VelocityBox:
+        robot = self.robot
+        return velocity_box(
+            theta, robot.position_limits, robot.velocity_limits, qdot_prev, self.dt,
+            self.limit_gain, self.acceleration_limit,
+        )  # fmt: skip
+
+    @property
     def problem(self) -> qpsolvers.Problem | None:
         """The QP of the last step (see :func:`~otmm_qp_controllers.qp_problem.build_qp`)."""
-        if self._last is None or self.box is None:
+        box = self.box
+        if self._last is None or box is None:
             return None
         jacobian, xdot, posture = self._last
         return build_qp(
-            jacobian, xdot, self.damping, self.box.lower, self.box.upper,
-            self.posture_weight, posture,
-        )  # fmt: skip
-
-    def _theta(self, q: FloatArray) -> FloatArray:
-        return q if self._euclidean else self.robot.joint_coordinates(q)
+            jacobian, xdot, self.damping, box.lower, box.upper, self.posture_weight, posture
+        )
 
     def unconstrained(
         self, state: KinematicState, xdot: FloatArray, posture: FloatArray | None
@@ -231,7 +266,7 @@ class QpBackend(Backend):
         sigma, Vt = state.sigma, state.Vt
         if posture is None:
             gains = sigma / (sigma * sigma + self.damping)
-            return np.asarray(Vt.T @ (gains * (state.U.T @ xdot)))
+            return np.asarray(((xdot @ state.U) * gains) @ Vt)
         mu = self.damping + self.posture_weight
         b = Vt.T @ (sigma * (state.U.T @ xdot)) + self.posture_weight * posture
         c = Vt @ b
@@ -244,13 +279,14 @@ class QpBackend(Backend):
         """Joint velocity [rad/s], shape ``(nv,)``, within the joint-velocity box."""
         step = self._step
         self._step += 1
-        robot = self.robot
-        theta = self._theta(state.q)
-        box = velocity_box(
-            theta, robot.position_limits, robot.velocity_limits, qdot_prev, self.dt,
-            self.limit_gain, self.acceleration_limit,
-        )  # fmt: skip
-        self.box = box
+        theta = state.q if self._euclidean else self.robot.joint_coordinates(state.q)
+        buffers = self._buffers
+        empty = buffers.update(theta, qdot_prev)
+        self._box = None
+        self._box_inputs = (
+            theta,
+            qdot_prev if self.acceleration_limit is None else qdot_prev.copy(),
+        )
         posture = None
         if self.posture_weight > 0.0:
             if self._posture_reference is None:
@@ -258,29 +294,30 @@ class QpBackend(Backend):
             posture = self.posture_gain * (self._posture_reference - theta)
         self._last = (state.task_jacobian, xdot, posture)
         self.used_qp = False
-        if box.empty:
-            detail = box.conflict(robot.joint_names)
+        if empty:
+            box = self._box = self._velocity_box(*self._box_inputs)
+            detail = box.conflict(self.robot.joint_names)
             return self._infeasible(step, detail, box, state, xdot, posture)
-        lower, upper = box.lower, box.upper
+        lower, upper = buffers.lower, buffers.upper
         if self.fast_path:
             candidate = self.unconstrained(state, xdot, posture)
-            if np.all(candidate >= lower) and np.all(candidate <= upper):
-                return BackendOutput(candidate, self._status(candidate, lower, upper), self.damping)
+            margins = buffers.margins(candidate)
+            if margins.min() >= 0.0:  # inside the box (False for NaN)
+                status = STATUS_BOUNDED if buffers.any_active(margins, 1e-9) else STATUS_OK
+                return BackendOutput(candidate, status, self.damping)
         self.used_qp = True
         qdot = self._solve_qp(state, xdot, posture, lower, upper)
-        if qdot is None or not np.all(np.isfinite(qdot)):
+        if qdot is None or not np.isfinite(qdot).all():
             detail = f"solver {self.solver!r} found no solution"
+            box = self._box = self._velocity_box(*self._box_inputs)
             return self._infeasible(step, detail, box, state, xdot, posture)
         qdot = np.clip(qdot, lower, upper)
-        return BackendOutput(qdot, self._status(qdot, lower, upper, 1e-7), self.damping)
+        return BackendOutput(qdot, self._status(qdot, 1e-7), self.damping)
 
-    def _status(
-        self, qdot: FloatArray, lower: FloatArray, upper: FloatArray, tol: float = 1e-9
-    ) -> str:
-        active = np.any(qdot - lower <= tol * (1.0 + np.abs(lower))) or np.any(
-            upper - qdot <= tol * (1.0 + np.abs(upper))
-        )
-        return STATUS_BOUNDED if active else STATUS_OK
+    def _status(self, qdot: FloatArray, tol: float) -> str:
+        """``bounded`` when some ``q̇_i`` is within ``tol·(1 + |bound|)`` of a bound."""
+        buffers = self._buffers
+        return STATUS_BOUNDED if buffers.any_active(buffers.margins(qdot), tol) else STATUS_OK
 
     def _solve_qp(
         self,
@@ -290,33 +327,70 @@ class QpBackend(Backend):
         lower: FloatArray,
         upper: FloatArray,
     ) -> FloatArray | None:
-        problem = build_qp(
-            state.task_jacobian, xdot, self.damping, lower, upper, self.posture_weight, posture
-        )
+        if self.solver not in DIRECT_SOLVERS:  # the plain reference path
+            problem = build_qp(
+                state.task_jacobian, xdot, self.damping, lower, upper, self.posture_weight,
+                posture,
+            )  # fmt: skip
+            return solve_with_qpsolvers(problem, self.solver)
+        self._fill_qp(state.task_jacobian, xdot, posture)
+        if self.solver == "direct_daqp":
+            return self._solve_daqp()
         if self.solver == "direct_proxsuite":
-            return self._solve_proxsuite(problem)
-        if self.solver == "direct_osqp":
-            return self._solve_osqp(problem)
-        return solve_with_qpsolvers(problem, self.solver)
+            return self._solve_proxsuite()
+        return self._solve_osqp()
 
-    def _solve_proxsuite(self, problem: qpsolvers.Problem) -> FloatArray | None:
+    def _fill_qp(self, jacobian: FloatArray, xdot: FloatArray, posture: FloatArray | None) -> None:
+        r"""Write :func:`build_qp`'s ``P``, ``q``, ``lb``, ``ub`` into the preallocated arrays.
+
+        .. math::
+            P = J_w^\top J_w + (\lambda + w_p)I,\qquad q = -(J_w^\top\dot x_w + w_p\dot q_p)
+        """
+        hessian, linear = self._hessian, self._linear
+        np.matmul(jacobian.T, jacobian, out=hessian)
+        np.add(self._diagonal, self.damping + self.posture_weight, out=self._diagonal)
+        np.matmul(jacobian.T, xdot, out=linear)
+        np.negative(linear, out=linear)
+        if self.posture_weight > 0.0 and posture is not None:
+            linear -= self.posture_weight * posture
+        np.clip(self._buffers.bounds, -BIG, BIG, out=self._qp_bounds)
+
+    def _solve_daqp(self) -> FloatArray | None:
+        model = self._direct
+        if not self._direct_initialised:
+            model.setup(self._hessian, self._linear, self._no_rows, self._qp_upper, self._qp_lower)
+            self._direct_initialised = True
+        else:  # keeps the previous active set: a warm start
+            model.update(H=self._hessian, f=self._linear, bupper=self._qp_upper,
+                         blower=self._qp_lower)  # fmt: skip
+        x, _, exitflag, _ = model.solve()
+        if exitflag <= 0:
+            return None
+        return np.array(x, dtype=float)
+
+    def _solve_proxsuite(self) -> FloatArray | None:
         import proxsuite
 
         qp = self._direct
+        hessian, linear, lower, upper = (
+            self._hessian, self._linear, self._qp_lower, self._qp_upper
+        )  # fmt: skip
         if not self._direct_initialised:
-            qp.init(problem.P, problem.q, None, None, None, None, None, problem.lb, problem.ub)
+            qp.init(hessian, linear, None, None, None, None, None, lower, upper)
             self._direct_initialised = True
         else:
-            qp.update(H=problem.P, g=problem.q, l_box=problem.lb, u_box=problem.ub)
+            qp.update(H=hessian, g=linear, l_box=lower, u_box=upper)
         qp.solve()
         if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
             return None
         return np.array(qp.results.x)
 
-    def _solve_osqp(self, problem: qpsolvers.Problem) -> FloatArray | None:
+    def _solve_osqp(self) -> FloatArray | None:
         solver = self._direct
         rows, cols = self._triu
-        solver.update(Px=problem.P[rows, cols], q=problem.q, l=problem.lb, u=problem.ub)
+        solver.update(
+            Px=self._hessian[rows, cols], q=self._linear, l=self._qp_lower, u=self._qp_upper
+        )
         result = solver.solve(raise_error=False)
         if result.info.status_val not in (1, 2):  # solved, solved inaccurate
             return None

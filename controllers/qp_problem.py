@@ -211,3 +211,88 @@ def build_qp(
     return qpsolvers.Problem(
         hessian, linear, lb=np.clip(lower, -BIG, BIG), ub=np.clip(upper, -BIG, BIG)
     )
+
+
+class BoxBuffers:
+    r"""Allocation-free evaluation of :func:`velocity_box`'s ``lb``/``ub`` every step.
+
+    The step-invariant parts (velocity limits, ``g/dt``, ``a_max·dt``) are fixed here once
+    per run; :meth:`update` writes
+
+    .. math::
+        lb = \max(-\dot q_{max},\ (g/dt)(\theta_{min}-\theta),\ \dot q_{prev}-a_{max}dt),\quad
+        ub = \min(\dot q_{max},\ (g/dt)(\theta_{max}-\theta),\ \dot q_{prev}+a_{max}dt)
+
+    into one preallocated ``(2, nv)`` array with the same floating-point operations as
+    :func:`velocity_box`, so both give bit-identical bounds. :meth:`margins` gives the
+    signed distances to both bounds in one pass.
+
+    Args:
+        position_limits: ``(θ_min, θ_max)``, shapes ``(nv,)`` (±inf allowed).
+        velocity_limits: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
+        dt: Control period [s].
+        limit_gain: ``g ∈ (0, 1]``.
+        acceleration_limit: ``a_max`` [rad/s²], shape ``(nv,)``, or None.
+
+    Attributes:
+        bounds: ``[lb, ub]`` [rad/s] of the last :meth:`update`, shape ``(2, nv)``
+            (overwritten by every update).
+        lower: View ``bounds[0]``.
+        upper: View ``bounds[1]``.
+    """
+
+    def __init__(
+        self,
+        position_limits: tuple[FloatArray, FloatArray],
+        velocity_limits: FloatArray,
+        dt: float,
+        limit_gain: float,
+        acceleration_limit: FloatArray | None,
+    ) -> None:
+        nv = velocity_limits.shape[0]
+        self._theta_limits = np.array(position_limits, dtype=float).reshape(2, nv)
+        speeds = np.array(velocity_limits, dtype=float)
+        self._vel_lower = -speeds
+        self._vel_upper = speeds
+        self._gain = limit_gain / dt  # [1/s]
+        self._acc_step = None if acceleration_limit is None else acceleration_limit * dt
+        self.bounds = np.empty((2, nv))
+        self.lower = self.bounds[0]
+        self.upper = self.bounds[1]
+        self._scratch = np.empty((2, nv))
+        self._threshold = np.empty((2, nv))
+        self._mask = np.empty((2, nv), dtype=bool)
+        self._signs = np.array([[1.0], [-1.0]])
+
+    def update(self, theta: FloatArray, qdot_prev: FloatArray) -> bool:
+        """Write ``lb``, ``ub`` for joint coordinates ``theta`` (nv,); True if the box is empty."""
+        lower, upper, scratch = self.lower, self.upper, self._scratch
+        np.subtract(self._theta_limits, theta, out=scratch)
+        np.multiply(self._gain, scratch, out=scratch)  # position boxes, (2, nv)
+        np.maximum(self._vel_lower, scratch[0], out=lower)
+        np.minimum(self._vel_upper, scratch[1], out=upper)
+        if self._acc_step is not None:
+            np.subtract(qdot_prev, self._acc_step, out=scratch[0])
+            np.maximum(lower, scratch[0], out=lower)
+            np.add(qdot_prev, self._acc_step, out=scratch[1])
+            np.minimum(upper, scratch[1], out=upper)
+        return bool(np.greater(lower, upper, out=self._mask[0]).any())
+
+    def margins(self, qdot: FloatArray) -> FloatArray:
+        """``[q̇ − lb, ub − q̇]`` [rad/s], shape ``(2, nv)`` (overwritten by the next call).
+
+        Every entry is ``≥ 0`` exactly when ``lb ≤ q̇ ≤ ub`` (IEEE subtraction keeps the sign);
+        a NaN in ``q̇`` gives NaN margins.
+        """
+        margins = self._scratch
+        np.subtract(qdot, self.bounds, out=margins)
+        np.multiply(self._signs, margins, out=margins)
+        return margins
+
+    def any_active(self, margins: FloatArray, tol: float) -> bool:
+        """Whether some margin is ``≤ tol·(1 + |bound|)`` (a bound active within ``tol``)."""
+        threshold = self._threshold
+        np.abs(self.bounds, out=threshold)
+        np.add(1.0, threshold, out=threshold)
+        np.multiply(tol, threshold, out=threshold)
+        return bool(np.less_equal(margins, threshold, out=self._mask).any())

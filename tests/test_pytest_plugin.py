@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
 
 import pytest
@@ -23,8 +24,10 @@ def run_pytest(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
     env["PYTHONPATH"] = os.pathsep.join([*map(str, paths), env.get("PYTHONPATH", "")])
     work = tmp_path / "work"
     work.mkdir()
-    command = [sys.executable, "-m", "pytest", "-p", "otmm_qp.testing.pytest_plugin"]
-    command += ["-p", "no:cacheprovider", "-q", "-rfs", *args]
+    command = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rfs", *args]
+    registered = metadata.entry_points(group="pytest11")
+    if not any(e.value == "otmm_qp.testing.pytest_plugin" for e in registered):
+        command[3:3] = ["-p", "otmm_qp.testing.pytest_plugin"]  # pyproject entry point missing
     return subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=300)
 
 

@@ -110,3 +110,14 @@ def test_verdicts_follow_the_metrics(paper: SuiteResult) -> None:
         if v.claim.startswith("E1: RMRC") and v.loop_mode == "clik"
     )
     assert verdict.verdict == FAILS
+
+
+def test_a_stuck_controller_does_not_break_the_judge(paper: SuiteResult) -> None:
+    """A controller that never moves (e.g. a direction-preserving peer stuck at E2's start)."""
+    doctored = copy.deepcopy(paper)
+    for record in doctored.records:
+        if record.result.experiment == "E2" and record.result.controller == "OTMM-linear":
+            record.result.qdot = np.zeros_like(record.result.qdot)
+    verdicts = judge_paper_claims(doctored)
+    assert all(np.isfinite(len(v.evidence)) for v in verdicts)
+    assert any(v.claim.startswith("E2: RMRC") and v.verdict == HOLDS for v in verdicts)

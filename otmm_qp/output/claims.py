@@ -4,8 +4,9 @@ Nothing here is written by hand: each verdict is computed from the runs, per loo
 
 Criteria (stated once, applied to every controller alike). For an experiment and loop mode:
 
-* the *nominal speed* :math:`v_{nom}` is the smallest, over the controllers, peak joint speed
-  :math:`\max\|\dot q\|_\infty` **outside** the singular window — what the task itself needs;
+* the *nominal speed* :math:`v_{nom}` is the median, over the controllers that move, of the peak
+  joint speed :math:`\max\|\dot q\|_\infty` **outside** the singular window — what the task
+  itself needs;
 * a run **breaks** when it blows up (non-finite or above ``blow_up_speed``) or its peak joint
   speed exceeds :math:`5\,v_{nom}`;
 * a run **chatters** when, inside the singular window (``window`` seconds around the minimum of
@@ -96,12 +97,10 @@ class _Judge:
         ]
 
     def nominal(self, experiment: str, mode: str) -> float:
-        peaks = [
-            motion(r, self.window, self.sigma_s).peak_outside
-            for r in self.records(experiment, mode)
-        ]
-        finite = [p for p in peaks if np.isfinite(p)]
-        return min(finite) if finite else float("nan")
+        peaks = [motion(r, self.window, self.sigma_s).peak_outside for r in self.records(experiment, mode)]
+        # Median over the controllers that move: robust to one blow-up and to a stuck peer.
+        moving = [p for p in peaks if np.isfinite(p) and p > 0.0]
+        return float(np.median(moving)) if moving else float("nan")
 
     def get(self, experiment: str, mode: str, controller: str) -> Motion | None:
         record = self.result.find(experiment, mode, controller)

@@ -97,7 +97,10 @@ class _Judge:
         ]
 
     def nominal(self, experiment: str, mode: str) -> float:
-        peaks = [motion(r, self.window, self.sigma_s).peak_outside for r in self.records(experiment, mode)]
+        peaks = [
+            motion(r, self.window, self.sigma_s).peak_outside
+            for r in self.records(experiment, mode)
+        ]
         # Median over the controllers that move: robust to one blow-up and to a stuck peer.
         moving = [p for p in peaks if np.isfinite(p) and p > 0.0]
         return float(np.median(moving)) if moving else float("nan")

@@ -207,6 +207,7 @@ def _targets(scenario: Scenario, pose_of: Callable[[int], FloatArray]) -> list[F
 def _pink_step(scenario: Scenario, solver: str) -> StepFunction:
     import pink
     import pinocchio as pin
+    from pink.exceptions import PinkError
 
     from otmm_qp.peers.pink_backend import PinkBackend
 
@@ -227,10 +228,13 @@ def _pink_step(scenario: Scenario, solver: str) -> StepFunction:
     def run(k: int) -> None:
         configuration.update(qs[k])
         task.set_target(targets[k])
-        solve_ik(
-            configuration, [task], DT, solver=solver, damping=1e-12, limits=limits,
-            safety_break=False, **options,
-        )  # fmt: skip
+        try:
+            solve_ik(
+                configuration, [task], DT, solver=solver, damping=1e-12, limits=limits,
+                safety_break=False, **options,
+            )  # fmt: skip
+        except PinkError:  # counted as a step, as the pink adapter does (q̇ = 0)
+            pass
 
     return run
 
@@ -257,7 +261,10 @@ def _mink_step(scenario: Scenario, solver: str) -> StepFunction:
     def run(k: int) -> None:
         configuration.update(qs[k])
         task.set_target(targets[k])
-        solve_ik(configuration, [task], DT, solver, damping=1e-12, limits=limits, **options)
+        try:
+            solve_ik(configuration, [task], DT, solver, damping=1e-12, limits=limits, **options)
+        except mink.MinkError:  # counted as a step, as the mink adapter does (q̇ = 0)
+            pass
 
     return run
 

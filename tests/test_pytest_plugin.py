@@ -17,9 +17,14 @@ from tests.plugin_install import install_example_plugin
 PAPER_ONLY = "paper/E1,paper/E2,paper/E3"
 
 
-def run_pytest(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    """``pytest -p otmm_qp.testing.pytest_plugin ARGS`` in an empty folder."""
-    paths = install_example_plugin(tmp_path / "site")
+def run_pytest(
+    tmp_path: Path, *args: str, first_paths: tuple[Path, ...] = ()
+) -> subprocess.CompletedProcess[str]:
+    """``pytest -p otmm_qp.testing.pytest_plugin ARGS`` in an empty folder.
+
+    ``first_paths`` go first on ``PYTHONPATH`` (e.g. to shadow an installed package).
+    """
+    paths = [*first_paths, *install_example_plugin(tmp_path / "site")]
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*map(str, paths), env.get("PYTHONPATH", "")])
     work = tmp_path / "work"
@@ -51,17 +56,26 @@ def test_pinv_fails_bounded_speed_at_the_singular_start(tmp_path: Path) -> None:
 
 
 def test_missing_peer_is_skipped_with_hint(tmp_path: Path) -> None:
+    # A meta-path finder (first in line, whatever sys.path order other packages impose)
+    # makes `import pink` fail as if pin-pink were not installed.
     (tmp_path / "block").mkdir()
-    (tmp_path / "block" / "pink.py").write_text("raise ImportError('pink blocked for the test')\n")
-    paths = [str(tmp_path / "block")]
+    (tmp_path / "block" / "block_pink.py").write_text(
+        "import sys\n"
+        "class BlockPink:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'pink' or name.startswith('pink.'):\n"
+        "            raise ImportError('pink blocked for the test')\n"
+        "sys.meta_path.insert(0, BlockPink())\n"
+    )
     result = run_pytest(
         tmp_path,
         "--otmm-controller",
         "pink",
         "--otmm-scenarios",
         "paper/E1",
-        "-o",
-        f"pythonpath={paths[0]}",
+        "-p",
+        "block_pink",
+        first_paths=(tmp_path / "block",),
     )
     if "unknown backend 'pink'" in result.stdout:
         pytest.skip("pink entry point not registered yet (pyproject)")

@@ -71,26 +71,39 @@ class OtmmFilter(TaskFilter):
         """Suppression level ``k·p(σ)`` in [0, 1]: 0 above σ_S."""
         if sigma > self.sigma_s:
             return 0.0
-        return float(min(max(self.p_function(sigma, self.sigma_s), 0.0), 1.0))
+        value = self.p_function(sigma, self.sigma_s)
+        return 0.0 if value < 0.0 else (1.0 if value > 1.0 else float(value))
 
     def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:
         """Apply eq. (8) to the weighted command ``xdot``, shape ``(n,)``."""
-        sigma_min = state.sigma_min
-        if sigma_min > self.sigma_s:
-            return FilterOutput(xdot, FilterReport(False, sigma_min, 0.0, 0.0))
-        U, sigma = _full_left_basis(state)
-        n = sigma.size
-        if self.corank == 1:
-            first = n - 1
-        else:  # σ is sorted descending: the filtered ones are a tail
-            first = int(np.searchsorted(-sigma, -self.sigma_s, side="left"))
-        basis = U[:, first:]  # (n, k) the u_i filtered
-        p = np.array([self.p(float(s)) for s in sigma[first:]])  # (k,)
-        removed_coefficients = p * (xdot @ basis)  # p_i (u_iᵀẋ)
+        sigma = state.sigma
+        n = state.task_dim
+        if sigma.size == n:
+            sigma_min = float(sigma[-1])
+            if sigma_min > self.sigma_s:
+                return FilterOutput(xdot, FilterReport(False, sigma_min, 0.0, 0.0))
+            U = state.U
+        else:
+            sigma_min = 0.0
+            U, sigma = _full_left_basis(state)
+        # σ is sorted descending, so the filtered ones are a tail of length k.
+        k = 1
+        if self.corank != 1:
+            while k < n and sigma[n - 1 - k] <= self.sigma_s:
+                k += 1
+        if k == 1:  # the paper's case, with scalars only
+            u_s = U[:, n - 1]
+            p = self.p(sigma_min)
+            removed_along = p * float(u_s @ xdot)  # p (u_sᵀẋ)
+            modified = xdot - removed_along * u_s
+            return FilterOutput(modified, FilterReport(True, sigma_min, p, abs(removed_along)))
+        basis = U[:, n - k :]  # (n, k) the u_i filtered
+        p_values = np.array([self.p(float(s)) for s in sigma[n - k :]])  # (k,)
+        removed_coefficients = p_values * (xdot @ basis)  # p_i (u_iᵀẋ)
         modified = xdot - basis @ removed_coefficients
         # The u_i are orthonormal, so ‖ẋ − ẋ_m‖ = ‖p ⊙ Uᵀẋ‖.
         removed = math.sqrt(float(removed_coefficients @ removed_coefficients))
-        return FilterOutput(modified, FilterReport(True, sigma_min, float(p.max()), removed))
+        return FilterOutput(modified, FilterReport(True, sigma_min, float(p_values.max()), removed))
 
 
 def _full_left_basis(state: KinematicState) -> tuple[FloatArray, FloatArray]:

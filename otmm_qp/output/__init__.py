@@ -1,0 +1,1 @@
+"""Outputs: summaries, claims verdicts, figures and the comparison report."""

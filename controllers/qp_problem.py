@@ -62,10 +62,14 @@ def solve_with_qpsolvers(problem: qpsolvers.Problem, solver: str) -> FloatArray 
             problem.lb,
             problem.ub,
         )
-    with warnings.catch_warnings():
-        # osqp 1.x warns that solve()'s raise_error default will change; qpsolvers calls it.
-        warnings.simplefilter("ignore", PendingDeprecationWarning)
-        solution = qpsolvers.solve_problem(problem, solver=solver, **SOLVER_OPTIONS.get(solver, {}))
+    options = SOLVER_OPTIONS.get(solver, {})
+    if solver != "osqp":
+        solution = qpsolvers.solve_problem(problem, solver=solver, **options)
+    else:
+        with warnings.catch_warnings():
+            # osqp 1.x warns that solve()'s raise_error default will change; qpsolvers calls it.
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
+            solution = qpsolvers.solve_problem(problem, solver=solver, **options)
     return solution.x if solution.found and solution.x is not None else None
 
 

@@ -35,6 +35,7 @@ import os
 import platform
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import partial
@@ -42,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from qpsolvers.warnings import SparseConversionWarning
 
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ConfigError, PeerUnavailable
@@ -537,10 +539,14 @@ def run_bench(out_dir: Path, steps: int, rounds: int = ROUNDS) -> int:
     if steps < 10:
         raise ConfigError("steps", f"must be >= 10, got {steps}")
     info = machine()
-    scenarios = [
-        bench_scenario(panda_scenario(steps), True, rounds),
-        bench_scenario(planar_scenario(steps), False, rounds),
-    ]
+    with warnings.catch_warnings():
+        # qpsolvers warns on every dense-to-sparse conversion for OSQP (pink's path too):
+        # the cost is part of what is measured, the repeated text is not useful.
+        warnings.simplefilter("ignore", SparseConversionWarning)
+        scenarios = [
+            bench_scenario(panda_scenario(steps), True, rounds),
+            bench_scenario(planar_scenario(steps), False, rounds),
+        ]
     result = {
         "command": f"otmm-qp bench --out {out_dir} --steps {steps}",
         "step_definition": STEP_DEFINITION,

@@ -27,6 +27,7 @@ from otmm_qp_controllers.qp_problem import (
     BoxBuffers,
     VelocityBox,
     build_qp,
+    check_limit_parameters,
     per_joint,
     solve_with_qpsolvers,
     velocity_box,
@@ -126,23 +127,11 @@ class QpBackend(Backend):
         installed = available_solvers()
         if solver not in installed:
             raise SolverNotFound(solver, installed)
-        if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
-            raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
+        check_limit_parameters(limit_gain, infeasible_policy, POLICIES, acceleration_limit)
         if not (np.isfinite(posture_weight) and posture_weight >= 0.0):
             raise ParameterError("posture_weight", f"must be >= 0, got {posture_weight}")
         if not (np.isfinite(posture_gain) and posture_gain >= 0.0):
             raise ParameterError("posture_gain", f"must be >= 0 [1/s], got {posture_gain}")
-        if infeasible_policy not in POLICIES:
-            raise ParameterError(
-                "infeasible_policy",
-                f"must be one of {', '.join(POLICIES)}, got {infeasible_policy!r}",
-            )
-        if acceleration_limit is not None:
-            acc = np.asarray(acceleration_limit, dtype=float)
-            if not np.all(acc > 0.0):
-                raise ParameterError(
-                    "acceleration_limit", f"must be > 0 [rad/s²], got {acc.tolist()}"
-                )
         self.damping = float(damping)
         self.solver = solver
         self.limit_gain = float(limit_gain)

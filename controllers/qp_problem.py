@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import qpsolvers
 
-from otmm_qp.exceptions import DimensionError
+from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 
 #: Infinite bounds are passed to the solvers as ±BIG [rad/s] (some reject inf).
@@ -71,6 +71,31 @@ def solve_with_qpsolvers(problem: qpsolvers.Problem, solver: str) -> FloatArray 
             warnings.simplefilter("ignore", PendingDeprecationWarning)
             solution = qpsolvers.solve_problem(problem, solver=solver, **options)
     return solution.x if solution.found and solution.x is not None else None
+
+
+def check_limit_parameters(
+    limit_gain: float,
+    infeasible_policy: str,
+    policies: Sequence[str],
+    acceleration_limit: float | Sequence[float] | None,
+) -> None:
+    """Validate the joint-limit parameters shared by the QP backends.
+
+    Raises:
+        ParameterError: ``limit_gain`` outside (0, 1], an unknown ``infeasible_policy``, or an
+            ``acceleration_limit`` that is not > 0 [rad/s²].
+    """
+    if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
+        raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
+    if infeasible_policy not in policies:
+        raise ParameterError(
+            "infeasible_policy",
+            f"must be one of {', '.join(policies)}, got {infeasible_policy!r}",
+        )
+    if acceleration_limit is not None:
+        acc = np.asarray(acceleration_limit, dtype=float)
+        if not np.all(acc > 0.0):
+            raise ParameterError("acceleration_limit", f"must be > 0 [rad/s²], got {acc.tolist()}")
 
 
 def per_joint(value: float | Sequence[float] | None, name: str, nv: int) -> FloatArray | None:

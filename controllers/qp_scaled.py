@@ -22,6 +22,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp_controllers.qp_problem import (
     BIG,
     VelocityBox,
+    check_limit_parameters,
     per_joint,
     solve_with_qpsolvers,
     velocity_box,
@@ -129,23 +130,11 @@ class ScaledQpBackend(Backend):
         installed = [s for s in qpsolvers.available_solvers if s in SCALED_SOLVERS]
         if solver not in installed:
             raise SolverNotFound(solver, installed)
-        if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
-            raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
+        check_limit_parameters(limit_gain, infeasible_policy, POLICIES, acceleration_limit)
         if not 0.0 <= stuck_threshold <= 1.0:
             raise ParameterError("stuck_threshold", f"must be in [0, 1], got {stuck_threshold}")
         if not (np.isfinite(regularization) and regularization > 0.0):
             raise ParameterError("regularization", f"must be > 0, got {regularization}")
-        if infeasible_policy not in POLICIES:
-            raise ParameterError(
-                "infeasible_policy",
-                f"must be one of {', '.join(POLICIES)}, got {infeasible_policy!r}",
-            )
-        if acceleration_limit is not None:
-            acc = np.asarray(acceleration_limit, dtype=float)
-            if not np.all(acc > 0.0):
-                raise ParameterError(
-                    "acceleration_limit", f"must be > 0 [rad/s²], got {acc.tolist()}"
-                )
         self.solver = solver
         self.limit_gain = float(limit_gain)
         self.acceleration_limit_param = acceleration_limit

@@ -12,12 +12,14 @@ from otmm_qp.trajectories.trajectory import Trajectory
 
 
 class _Line(Trajectory):
+    """Shared constructor of the lines: ``begin`` defaults to the start position."""
+
     def __init__(
         self,
         start: FloatArray,
         end: Sequence[float],
         duration: float,
-        begin: Sequence[float] | None,
+        begin: Sequence[float] | None = None,
     ) -> None:
         self.end = np.asarray(end, dtype=float)
         dim = self.end.size
@@ -52,15 +54,6 @@ class QuinticLineTrajectory(_Line):
 
     name = "quintic_line"
 
-    def __init__(
-        self,
-        start: FloatArray,
-        end: Sequence[float],
-        duration: float,
-        begin: Sequence[float] | None = None,
-    ) -> None:
-        super().__init__(start, end, duration, begin)
-
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Position [m] and velocity [m/s] at ``t`` [s]."""
         tau = min(max(t / self.duration, 0.0), 1.0)
@@ -79,15 +72,6 @@ class ConstantVelocityLineTrajectory(_Line):
     """
 
     name = "constant_velocity_line"
-
-    def __init__(
-        self,
-        start: FloatArray,
-        end: Sequence[float],
-        duration: float,
-        begin: Sequence[float] | None = None,
-    ) -> None:
-        super().__init__(start, end, duration, begin)
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Position [m] and velocity [m/s] at ``t`` [s]."""

@@ -30,8 +30,14 @@ def _parser() -> argparse.ArgumentParser:
         "config", nargs="?", help=f"YAML file (default: the embedded {DEFAULT_CONFIG})"
     )
     run.add_argument("--out", type=Path, help="results folder (default: results/<config name>)")
-    run.add_argument("--no-figures", action="store_true", help="skip PNG figures")
-    run.add_argument("--per-run-figures", action="store_true", help="also draw one figure per run")
+    run.add_argument(
+        "--figures",
+        choices=("all", "comparison", "none"),
+        default="all",
+        help="PNG figures: one per run plus one comparison per experiment and loop mode "
+        "(all, the default), only the comparisons, or none",
+    )
+    run.add_argument("--no-figures", action="store_true", help="same as --figures none")
     run.add_argument("--quiet", action="store_true", help="no progress lines")
     commands.add_parser(
         "list", help="list registered robots, filters, p-functions, backends, trajectories"
@@ -97,11 +103,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         if args.command in (None, "run"):
+            figures = (
+                "none" if getattr(args, "no_figures", False) else getattr(args, "figures", "all")
+            )
             return command_run(
                 getattr(args, "config", None),
                 getattr(args, "out", None),
-                not getattr(args, "no_figures", False),
-                getattr(args, "per_run_figures", False),
+                figures != "none",
+                figures == "all",
                 getattr(args, "quiet", False),
             )
         if args.command == "list":

@@ -179,3 +179,21 @@ def test_console_script_exit_status() -> None:
     )
     assert done.returncode == 2
     assert done.stderr.strip() == "otmm-qp: error: /nonexistent.yaml: no such config file"
+
+
+def test_run_draws_per_run_and_comparison_figures(tmp_path: Path) -> None:
+    config = tmp_path / "good.yaml"
+    config.write_text(GOOD)
+    assert main(["run", str(config), "--out", str(tmp_path), "--quiet"]) == 0
+    for name in ["OTMM.png", "comparison.png"]:
+        png = (tmp_path / "A" / "clik" / name).read_bytes()
+        assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000
+    assert (
+        main(
+            ["run", str(config), "--out", str(tmp_path / "c"), "--quiet", "--figures", "comparison"]
+        )
+        == 0
+    )
+    assert sorted(p.name for p in (tmp_path / "c" / "A" / "clik").glob("*.png")) == [
+        "comparison.png"
+    ]

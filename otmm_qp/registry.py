@@ -21,7 +21,13 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
 
-from otmm_qp.exceptions import ConfigError, PluginNotFound, PluginValidationError
+from otmm_qp.exceptions import (
+    ConfigError,
+    OtmmError,
+    PeerUnavailable,
+    PluginNotFound,
+    PluginValidationError,
+)
 
 ROBOTS = "otmm_qp.robots"
 FILTERS = "otmm_qp.filters"
@@ -206,3 +212,7 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
         ) from error
     except (TypeError, ValueError) as error:
         raise ConfigError(field, f"invalid parameters for {name!r}: {error}") from error
+    except PeerUnavailable:
+        raise  # not bad input: the runner reports the controller as skipped
+    except OtmmError as error:  # e.g. SolverNotFound, FrameNotFound: keep the message, add the path
+        raise ConfigError(field, str(error)) from error

@@ -112,14 +112,9 @@ def prepare_experiment(
     """
     config = suite.experiments[index]
     field = f"{source}: experiments.{index}"
-    try:
-        robot: Robot = registry.create(
-            registry.ROBOTS, config.robot.type, config.robot.params, f"{field}.robot"
-        )
-    except ConfigError:
-        raise
-    except OtmmError as error:
-        raise ConfigError(f"{field}.robot", str(error)) from error
+    robot: Robot = registry.create(
+        registry.ROBOTS, config.robot.type, config.robot.params, f"{field}.robot"
+    )
     try:
         q0 = robot.check_start(np.asarray(config.q0, dtype=float))
     except OtmmError as error:

@@ -76,12 +76,16 @@ def command_run(
         from otmm_qp.output.claims import judge_paper_claims, write_claims
 
         write_claims(judge_paper_claims(outcome), out_dir / "claims.md")
+    from otmm_qp.output.report import write_report
+
+    report_html, _ = write_report(out_dir)
     print(
         f"{len(outcome.records)} runs in {outcome.compute_seconds:.2f} s of compute -> {out_dir}/"
     )
     print(f"  summary: {out_dir / 'summary.md'}")
     if suite.claims == "paper":
         print(f"  claims:  {out_dir / 'claims.md'}")
+    print(f"  report:  {report_html}")
     if outcome.errors:
         for message in outcome.errors:
             print(f"otmm-qp: error: {message}", file=sys.stderr)

@@ -188,6 +188,8 @@ def test_run_draws_per_run_and_comparison_figures(tmp_path: Path) -> None:
     for name in ["OTMM.png", "comparison.png"]:
         png = (tmp_path / "A" / "clik" / name).read_bytes()
         assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000
+    html = (tmp_path / "report.html").read_text()
+    assert "<html" in html and "data:image/png;base64," in html  # self-contained, figures in
     assert (
         main(
             ["run", str(config), "--out", str(tmp_path / "c"), "--quiet", "--figures", "comparison"]

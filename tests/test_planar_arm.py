@@ -47,3 +47,12 @@ def test_bad_inputs_name_the_field() -> None:
         arm.check_start(np.array([0.0, 1.5]))
     with pytest.raises(DimensionError, match=r"q0: expected shape \(2,\), got \(3,\)"):
         arm.check_start(np.zeros(3))
+
+
+def test_paper_sri_threshold_w0() -> None:
+    """configs/paper.yaml's SRI w0 is |det J| = l1 l2 |sin q2| where σ_min = 0.05."""
+    from scipy.optimize import brentq
+
+    arm = PlanarArm([1.0, 0.8])
+    q2 = brentq(lambda a: np.linalg.svd(arm.jacobian(np.array([0.0, a])))[1][-1] - 0.05, 1e-6, 1.0)
+    assert 0.8 * abs(np.sin(q2)) == pytest.approx(0.0983028, abs=1e-7)

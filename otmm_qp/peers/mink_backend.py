@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
-from otmm_qp.exceptions import ParameterError, PeerModelMismatch, SolverNotFound
+from otmm_qp.exceptions import PeerModelMismatch
 from otmm_qp.peers.models import mujoco_joint_map, mujoco_model, pose_mismatch
 from otmm_qp.peers.peer_backend import PeerBackend, require
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -53,17 +53,7 @@ class MinkBackend(PeerBackend):
         limits: bool = True,
     ) -> None:
         require("mink", ["mujoco", "mink"])
-        import qpsolvers
-
-        if solver not in qpsolvers.available_solvers:
-            raise SolverNotFound(solver, qpsolvers.available_solvers)
-        for field, value in (("damping", damping), ("lm_damping", lm_damping)):
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ParameterError(field, f"must be a finite number >= 0, got {value}")
-        self.solver = solver
-        self.damping = float(damping)
-        self.lm_damping = float(lm_damping)
-        self.use_limits = bool(limits)
+        self.configure_qp(solver, damping, lm_damping, limits)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build the MuJoCo model, check it against Pinocchio, set up task and limits.

@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.backends.backend import Backend
-from otmm_qp.exceptions import PeerUnavailable
+from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -92,6 +92,25 @@ class PeerBackend(Backend):
         target[:3, 3] += linear * dt
         target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
         return target
+
+    def configure_qp(self, solver: str, damping: float, lm_damping: float, limits: bool) -> None:
+        """Validate and store the settings shared by the QP-based peers (pink, mink).
+
+        Raises:
+            SolverNotFound: ``solver`` is not an installed qpsolvers backend.
+            ParameterError: A damping is negative or not finite.
+        """
+        import qpsolvers
+
+        if solver not in qpsolvers.available_solvers:
+            raise SolverNotFound(solver, qpsolvers.available_solvers)
+        for field, value in (("damping", damping), ("lm_damping", lm_damping)):
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ParameterError(field, f"must be a finite number >= 0, got {value}")
+        self.solver = solver
+        self.damping = float(damping)
+        self.lm_damping = float(lm_damping)
+        self.use_limits = bool(limits)
 
     def orientation_weight(self) -> float:
         """1 for pose tasks, 0 when only the position is commanded."""

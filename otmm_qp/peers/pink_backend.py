@@ -8,7 +8,6 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
-from otmm_qp.exceptions import ParameterError, SolverNotFound
 from otmm_qp.peers.models import pinocchio_model
 from otmm_qp.peers.peer_backend import PeerBackend, require
 from otmm_qp.robots.planar_arm import PlanarArm
@@ -52,17 +51,7 @@ class PinkBackend(PeerBackend):
         limits: bool = True,
     ) -> None:
         require("pink", ["pink"])
-        import qpsolvers
-
-        if solver not in qpsolvers.available_solvers:
-            raise SolverNotFound(solver, qpsolvers.available_solvers)
-        for field, value in (("damping", damping), ("lm_damping", lm_damping)):
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ParameterError(field, f"must be a finite number >= 0, got {value}")
-        self.solver = solver
-        self.damping = float(damping)
-        self.lm_damping = float(lm_damping)
-        self.use_limits = bool(limits)
+        self.configure_qp(solver, damping, lm_damping, limits)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build pink's configuration, frame task and limits for ``robot`` (``dt`` in [s])."""

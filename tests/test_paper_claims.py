@@ -121,3 +121,21 @@ def test_a_stuck_controller_does_not_break_the_judge(paper: SuiteResult) -> None
     verdicts = judge_paper_claims(doctored)
     assert all(np.isfinite(len(v.evidence)) for v in verdicts)
     assert any(v.claim.startswith("E2: RMRC") and v.verdict == HOLDS for v in verdicts)
+
+
+@pytest.mark.parametrize("mode", ["clik", "newton"])
+def test_smaller_sigma_s_lowers_error_but_raises_jumps(paper: SuiteResult, mode: str) -> None:
+    """The paper's closing remark holds, and the sweep shows its price in one-step jumps."""
+    thresholds = ["0.01", "0.02", "0.05", "0.1"]
+    errors = [
+        metric(paper, "E1_sigma_s", mode, f"OTMM-cbrt-{s}", "max_error_window") for s in thresholds
+    ]
+    jumps = [metric(paper, "E1_sigma_s", mode, f"OTMM-cbrt-{s}", "max_jump") for s in thresholds]
+    assert errors == sorted(errors) and len(set(errors)) == 4
+    assert jumps == sorted(jumps, reverse=True)
+    verdict = next(
+        v
+        for v in judge_paper_claims(paper)
+        if v.claim.startswith("E1: a smaller σ_S") and v.loop_mode == mode
+    )
+    assert verdict.verdict == HOLDS

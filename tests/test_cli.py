@@ -79,11 +79,55 @@ BAD = {
 }
 
 
-@pytest.mark.parametrize("case", list(BAD), ids=list(BAD))
+ARM = """
+name: arm
+dt: 0.01
+loop_modes: [clik]
+experiments:
+  - name: A
+    robot: {type: pinocchio, name: ur5, task: pose}
+    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
+    trajectory: {type: pose_line, end: [0.5, 0.1, 0.4], duration: 1.0}
+    controllers:
+      - name: qp
+        backend: {type: qp, solver: daqp}
+"""
+
+ARM_BAD = {
+    "unknown robot": (
+        ARM.replace("name: ur5", "name: ur99"),
+        "experiments.0.robot: name: unknown robot .ur99.; valid names: kinova, panda, ur10, ur3",
+    ),
+    "missing URDF": (
+        ARM.replace("name: ur5", "urdf: /nonexistent.urdf"),
+        "experiments.0.robot: urdf: file not found: /nonexistent.urdf",
+    ),
+    "unknown frame": (
+        ARM.replace("task: pose}", "task: pose, frame: nope}"),
+        "experiments.0.robot: unknown frame 'nope'; valid frames: base, .*tool0",
+    ),
+    "unknown solver": (
+        ARM.replace("solver: daqp", "solver: gurobi"),
+        "experiments.0.controllers.0.backend: unknown QP solver 'gurobi'; installed: .*daqp",
+    ),
+    "weight shape": (
+        ARM.replace("    q0:", "    task_weight: [1, 1]\n    q0:"),
+        r"experiments.0.task_weight: task_weight: expected shape \(6,\), got \(2,\)",
+    ),
+    "q0 outside limits": (
+        ARM.replace("-1.8, 0.3", "-1.8, 9.3"),
+        r"experiments.0.q0: joint 'wrist_2_joint' = 9.3 is outside its limits",
+    ),
+}
+
+ALL_BAD = {**BAD, **{f"arm: {name}": case for name, case in ARM_BAD.items()}}
+
+
+@pytest.mark.parametrize("case", list(ALL_BAD))
 def test_bad_input_one_line_exit_2(
     case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    text, pattern = BAD[case]
+    text, pattern = ALL_BAD[case]
     config = tmp_path / "bad.yaml"
     config.write_text(text)
     status = main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"])
@@ -199,59 +243,3 @@ def test_run_draws_per_run_and_comparison_figures(tmp_path: Path) -> None:
     assert sorted(p.name for p in (tmp_path / "c" / "A" / "clik").glob("*.png")) == [
         "comparison.png"
     ]
-
-
-ARM = """
-name: arm
-dt: 0.01
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: pinocchio, name: ur5, task: pose}
-    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory: {type: pose_line, end: [0.5, 0.1, 0.4], duration: 1.0}
-    controllers:
-      - name: qp
-        backend: {type: qp, solver: daqp}
-"""
-
-ARM_BAD = {
-    "unknown robot": (
-        ARM.replace("name: ur5", "name: ur99"),
-        "experiments.0.robot: name: unknown robot .ur99.; valid names: kinova, panda, ur10, ur3",
-    ),
-    "missing URDF": (
-        ARM.replace("name: ur5", "urdf: /nonexistent.urdf"),
-        "experiments.0.robot: urdf: file not found: /nonexistent.urdf",
-    ),
-    "unknown frame": (
-        ARM.replace("task: pose}", "task: pose, frame: nope}"),
-        "experiments.0.robot: unknown frame 'nope'; valid frames: base, .*tool0",
-    ),
-    "unknown solver": (
-        ARM.replace("solver: daqp", "solver: gurobi"),
-        "experiments.0.controllers.0.backend: unknown QP solver 'gurobi'; installed: .*daqp",
-    ),
-    "weight shape": (
-        ARM.replace("    q0:", "    task_weight: [1, 1]\n    q0:"),
-        r"experiments.0.task_weight: task_weight: expected shape \(6,\), got \(2,\)",
-    ),
-    "q0 outside limits": (
-        ARM.replace("-1.8, 0.3", "-1.8, 9.3"),
-        r"experiments.0.q0: joint 'wrist_2_joint' = 9.3 is outside its limits",
-    ),
-}
-
-
-@pytest.mark.parametrize("case", list(ARM_BAD), ids=list(ARM_BAD))
-def test_arm_bad_input_one_line_exit_2(
-    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    text, pattern = ARM_BAD[case]
-    config = tmp_path / "arm.yaml"
-    config.write_text(text)
-    status = main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"])
-    err = capsys.readouterr().err.strip()
-    assert status == 2
-    assert len(err.splitlines()) == 1 and err.startswith("otmm-qp: error: arm.yaml: "), err
-    assert re.search(pattern, err), err

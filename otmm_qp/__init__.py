@@ -4,11 +4,33 @@ The pipeline of one control step::
 
     state = KinematicState.compute(robot, q)      # J and its SVD, once
     out = controller.step(state, xdot_c, qdot)    # filters (e.g. OTMM) then a backend
+
+Submodules load on first use, so ``import otmm_qp`` (and the pytest plugin, which every
+pytest session in an environment with otmm-qp loads) stays cheap.
 """
 
-from otmm_qp.controller import Controller, ControllerOutput
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.state import KinematicState
+
+if TYPE_CHECKING:
+    from otmm_qp.controller import Controller, ControllerOutput
+    from otmm_qp.state import KinematicState
 
 __all__ = ["Controller", "ControllerOutput", "KinematicState", "OtmmError"]
 __version__ = "0.1.0"
+
+_LAZY = {
+    "Controller": "otmm_qp.controller",
+    "ControllerOutput": "otmm_qp.controller",
+    "KinematicState": "otmm_qp.state",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'otmm_qp' has no attribute {name!r}")

@@ -16,6 +16,8 @@ from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 
 PFunction = Callable[[float, float], float]
+#: σ_S when a config gives none (the paper's value).
+DEFAULT_SIGMA_S = 0.05
 
 
 class OtmmFilter(TaskFilter):
@@ -46,7 +48,7 @@ class OtmmFilter(TaskFilter):
 
     def __init__(
         self,
-        sigma_s: float = 0.05,
+        sigma_s: float = DEFAULT_SIGMA_S,
         p: str = "linear",
         p_params: Mapping[str, Any] | None = None,
         corank: int | str = 1,

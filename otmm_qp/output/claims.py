@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from otmm_qp.filters.otmm import DEFAULT_SIGMA_S
 from otmm_qp.runner.run import RunRecord, SuiteResult
 
 BREAK_FACTOR = 5.0
@@ -193,7 +194,11 @@ def _sigma_s_sweep(judge: _Judge, mode: str, claim: str) -> Verdict:
         return Verdict(claim, mode, MISSING, "experiment E1_sigma_s not in this config")
     points = []
     for controller in experiment.controllers:
-        thresholds = [f.params.get("sigma_s") for f in controller.filters if f.type == "otmm"]
+        thresholds = [
+            float(f.params.get("sigma_s", DEFAULT_SIGMA_S))
+            for f in controller.filters
+            if f.type == "otmm"
+        ]
         record = judge.result.find(experiment.name, mode, controller.name)
         if record is None or not thresholds:
             continue

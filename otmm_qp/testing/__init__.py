@@ -9,17 +9,10 @@ Run it against any registered backend::
 scenarios and thresholds.
 """
 
-from otmm_qp.testing.conformance import (
-    CHECKS,
-    ControllerSpec,
-    Scenario,
-    Verdict,
-    check,
-    conformance_report,
-    parse_controller,
-    run_scenario,
-    scenarios,
-)
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __all__ = [
     "CHECKS",
@@ -32,3 +25,11 @@ __all__ = [
     "run_scenario",
     "scenarios",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    # Lazy: the pytest plugin lives in this package and must not import the simulator
+    # into every pytest session.
+    if name in __all__:
+        return getattr(importlib.import_module("otmm_qp.testing.conformance"), name)
+    raise AttributeError(f"module 'otmm_qp.testing' has no attribute {name!r}")

@@ -19,13 +19,13 @@ and ``otmm_scenario`` (a :class:`Scenario`), both parametrized by the options ab
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from otmm_qp.exceptions import ConfigError, PeerUnavailable
-from otmm_qp.runner.run import RunRecord
-from otmm_qp.testing import conformance
+if TYPE_CHECKING:
+    from otmm_qp.runner.run import RunRecord
+    from otmm_qp.testing import conformance
 
 SUITE_FILE = Path(__file__).with_name("suite.py")
 _KEY = pytest.StashKey[dict[tuple[str, str], Any]]()
@@ -60,6 +60,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def _controllers(config: pytest.Config) -> list[conformance.ControllerSpec]:
+    from otmm_qp.testing import conformance
+
     return [
         conformance.parse_controller(
             name, config.getoption("--otmm-params"), config.getoption("--otmm-filters")
@@ -69,6 +71,8 @@ def _controllers(config: pytest.Config) -> list[conformance.ControllerSpec]:
 
 
 def _scenarios(config: pytest.Config) -> list[conformance.Scenario]:
+    from otmm_qp.testing import conformance
+
     wanted = config.getoption("--otmm-scenarios")
     found = list(conformance.scenarios())
     if not wanted:
@@ -93,7 +97,9 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
         found = _scenarios(metafunc.config)
         metafunc.parametrize("otmm_scenario", found, ids=[s.name for s in found])
     if "otmm_check" in names:
-        metafunc.parametrize("otmm_check", conformance.CHECKS)
+        from otmm_qp.testing.conformance import CHECKS
+
+        metafunc.parametrize("otmm_check", CHECKS)
 
 
 @pytest.fixture
@@ -103,11 +109,14 @@ def otmm_run(
     otmm_scenario: conformance.Scenario,
 ) -> RunRecord:
     """The run of the controller under test on the scenario (simulated once per session)."""
+    from otmm_qp.exceptions import ConfigError, PeerUnavailable
+    from otmm_qp.testing.conformance import run_scenario
+
     cache = request.config.stash[_KEY]
     key = (otmm_controller.label, otmm_scenario.name)
     if key not in cache:
         try:
-            cache[key] = conformance.run_scenario(otmm_scenario, otmm_controller)
+            cache[key] = run_scenario(otmm_scenario, otmm_controller)
         except (PeerUnavailable, ConfigError) as error:
             cache[key] = error
     outcome = cache[key]

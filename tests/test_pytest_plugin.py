@@ -99,3 +99,14 @@ def test_builtin_backends_pass_in_process(backend: str) -> None:
     for name, verdicts in conformance.conformance_report(spec).items():
         failed = [v for v in verdicts if not v.passed]
         assert failed == [], (name, failed)
+
+
+def test_plugin_import_is_light() -> None:
+    """Every pytest session in an environment with otmm-qp loads the plugin: keep it cheap."""
+    code = (
+        "import sys, otmm_qp.testing.pytest_plugin; "
+        "print(sorted(m for m in ('scipy', 'pydantic', 'pinocchio', 'otmm_qp.state') "
+        "if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"

@@ -243,3 +243,13 @@ def test_run_draws_per_run_and_comparison_figures(tmp_path: Path) -> None:
     assert sorted(p.name for p in (tmp_path / "c" / "A" / "clik").glob("*.png")) == [
         "comparison.png"
     ]
+
+
+def test_default_run_is_the_paper_reproduction(tmp_path: Path) -> None:
+    assert main(["run", "--out", str(tmp_path), "--quiet", "--figures", "none"]) == 0
+    rows = list(csv.DictReader((tmp_path / "summary.csv").read_text().splitlines()))
+    assert {r["experiment"] for r in rows} == {"E1", "E1_nearest", "E1_sigma_s", "E2", "E3"}
+    assert {r["loop_mode"] for r in rows} == {"feedforward", "clik", "newton"}
+    claims = (tmp_path / "claims.md").read_text()
+    assert claims.count("| E2: RMRC breaks from the singular start |") == 3
+    assert (tmp_path / "report.html").exists() and (tmp_path / "summary.md").exists()

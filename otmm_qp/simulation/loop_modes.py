@@ -26,7 +26,7 @@ def commanded_velocity(
     t: float,
     dt: float,
     x: FloatArray,
-    xd: FloatArray,
+    error: FloatArray,
     xd_dot: FloatArray,
     gain: float,
 ) -> FloatArray:
@@ -39,12 +39,13 @@ def commanded_velocity(
         t: Current time [s].
         dt: Control period [s].
         x: Current task value.
-        xd: Desired task value at ``t``.
+        error: Tracking error ``e(x_d(t), x)``, shape ``(n,)`` (computed once per step by the
+            caller, which also records it).
         xd_dot: Desired task velocity at ``t``, shape ``(n,)``.
         gain: CLIK gain K [1/s].
     """
     if mode == "feedforward":
         return xd_dot
     if mode == "clik":
-        return xd_dot + gain * robot.task_error(xd, x)
+        return xd_dot + gain * error
     return robot.task_error(trajectory.position(t + dt), x) / dt

@@ -83,8 +83,9 @@ def simulate(
         xd, xd_dot = trajectory.sample(tk)
         tic = time.perf_counter()
         state = KinematicState.compute(robot, q, task_weight)
+        tracking_error = robot.task_error(xd, state.x)
         command = commanded_velocity(
-            loop_mode, robot, trajectory, tk, dt, state.x, xd, xd_dot, clik_gain
+            loop_mode, robot, trajectory, tk, dt, state.x, tracking_error, xd_dot, clik_gain
         )
         try:
             output = controller.step(state, command, qdot_prev)
@@ -98,7 +99,7 @@ def simulate(
         qdot = output.qdot
         q_log[k] = robot.joint_coordinates(q)
         qdot_log[k] = qdot
-        error_log[k] = robot.task_error(xd, state.x)
+        error_log[k] = tracking_error
         sigma_log[k] = state.sigma_min
         if output.reports:
             p_log[k] = max(r.p for r in output.reports)

@@ -139,6 +139,17 @@ def _plain_log_ticks(ax: Axes) -> None:
     ax.yaxis.set_major_formatter(_PLAIN)
 
 
+def _set_value_scale(ax: Axes, log: bool, limits: tuple[float, float] | None) -> None:
+    """Log y-axis with plain ticks (and ``limits`` if given), or a linear one from 0."""
+    if log:
+        ax.set_yscale("log")
+        _plain_log_ticks(ax)
+        if limits is not None:
+            ax.set_ylim(*limits)
+    else:
+        ax.set_ylim(bottom=0.0)
+
+
 def _apply_speed_scale(ax: Axes, band: float | None) -> str:
     """Set a symlog scale when ``band`` is given; return the label suffix."""
     if band is None:
@@ -275,13 +286,7 @@ def _plot_error(
     position = result.position_error if result.steps else np.zeros(0)
     ax.plot(result.t, _for_log(position) if log else position, color="tab:blue", linewidth=1.0)
     ax.set_ylabel("‖e‖ [m]" + (" (log)" if log else ""), color="tab:blue")
-    if log:
-        ax.set_yscale("log")
-        _plain_log_ticks(ax)
-        if limits is not None:
-            ax.set_ylim(*limits)
-    else:
-        ax.set_ylim(bottom=0.0)
+    _set_value_scale(ax, log, limits)
     angular = result.orientation_error
     if angular is None:
         return None
@@ -294,14 +299,7 @@ def _plot_error(
         linewidth=1.0,
     )
     twin.set_ylabel("orientation error [rad]" + (" (log)" if angle_log else ""), color="tab:orange")
-    if angle_log:
-        twin.set_yscale("log")
-        _plain_log_ticks(twin)
-        angle_limits = _log_limits([angular])
-        if angle_limits is not None:
-            twin.set_ylim(*angle_limits)
-    else:
-        twin.set_ylim(bottom=0.0)
+    _set_value_scale(twin, angle_log, _log_limits([angular]) if angle_log else None)
     return twin
 
 
@@ -328,13 +326,7 @@ def _plot_sigma(
             va="bottom",
         )
     ax.set_ylabel("σ_min" + (" (log)" if log else ""), color="tab:blue")
-    if log:
-        ax.set_yscale("log")
-        _plain_log_ticks(ax)
-        if limits is not None:
-            ax.set_ylim(*limits)
-    else:
-        ax.set_ylim(bottom=0.0)
+    _set_value_scale(ax, log, limits)
 
 
 def _plot_p(ax: Axes, result: RunResult, label: bool = True) -> None:

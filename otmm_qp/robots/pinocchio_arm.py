@@ -336,6 +336,20 @@ class PinocchioArm(Robot):
             return placement.translation.copy(), jacobian[:3].copy()
         return placement.homogeneous, jacobian
 
+    def jacobian_derivative(self, q: FloatArray, direction: FloatArray) -> FloatArray:
+        r"""Time variation of the ``LOCAL_WORLD_ALIGNED`` frame Jacobian for ``q̇ = direction``.
+
+        Pinocchio's ``computeJointJacobiansTimeVariation`` + ``getFrameJacobianTimeVariation``
+        (exact, one pass), shape ``(3, nv)`` or ``(6, nv)``.
+        """
+        model, data = self.model, self.data
+        pin.computeJointJacobiansTimeVariation(model, data, q, np.asarray(direction, dtype=float))
+        pin.updateFramePlacements(model, data)
+        rate = pin.getFrameJacobianTimeVariation(
+            model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED
+        )
+        return np.asarray(rate[: self._rows], dtype=float)
+
     def task_error(self, x_target: FloatArray, x: FloatArray) -> FloatArray:
         r"""Error driving ``x`` to ``x_target``, world axes.
 

@@ -100,6 +100,19 @@ class PlanarArm(Robot):
         jacobian = np.array([-outward[1], outward[0]])
         return outward[:, 0].copy(), jacobian
 
+    def jacobian_derivative(self, q: FloatArray, direction: FloatArray) -> FloatArray:
+        r"""Analytic :math:`\dot J(q, d)`, shape ``(2, m)``.
+
+        With :math:`\dot\theta = L d` (prefix sums), link ``i`` rotates at :math:`\dot\theta_i`:
+
+        .. math:: \dot J_{:,j} = -\sum_{i \ge j} l_i \dot\theta_i (\cos\theta_i, \sin\theta_i)
+        """
+        theta = self._prefix_sum @ q
+        theta_rate = self._prefix_sum @ np.asarray(direction, dtype=float)
+        weighted = self.link_lengths * theta_rate
+        rates = weighted * np.array([np.cos(theta), np.sin(theta)])  # (2, m)
+        return np.asarray(-(rates @ self._suffix_sum), dtype=float)
+
     def can_reach(self, x: FloatArray) -> bool:
         """Whether ``x`` [m] lies in the reach annulus ``r_min ≤ ‖x‖ ≤ r_max``."""
         radius = float(np.hypot(x[0], x[1]))

@@ -88,6 +88,26 @@ class Robot(abc.ABC):
         """Jacobian ``J(q)``, shape ``(n, nv)``."""
         return self.kinematics(q)[1]
 
+    def jacobian_derivative(self, q: FloatArray, direction: FloatArray) -> FloatArray:
+        r"""Directional derivative of the Jacobian along a joint velocity, shape ``(n, nv)``.
+
+        .. math:: \dot J(q, d) = \sum_k \frac{\partial J}{\partial q_k} d_k
+                  = \lim_{h\to 0} \frac{J(q \oplus h d) - J(q \ominus h d)}{2h}
+
+        With ``d = q̇`` [rad/s] this is ``dJ/dt`` [task units/s per rad/s]. The default is the
+        central difference above (step ``h = 1e-6 / max(1, ‖d‖)``, error O(h²)); subclasses
+        override it with an analytic form when they have one.
+
+        Args:
+            q: Configuration, shape ``(nq,)``.
+            direction: Joint velocity ``d``, shape ``(nv,)``.
+        """
+        d = np.asarray(direction, dtype=float)
+        h = 1e-6 / max(1.0, float(np.linalg.norm(d)))
+        forward = self.jacobian(self.integrate(q, d, h))
+        backward = self.jacobian(self.integrate(q, d, -h))
+        return np.asarray((forward - backward) / (2.0 * h), dtype=float)
+
     def task_error(self, x_target: FloatArray, x: FloatArray) -> FloatArray:
         """Error that drives ``x`` toward ``x_target``, shape ``(n,)``: ``x_target − x``."""
         return np.asarray(x_target, dtype=float) - np.asarray(x, dtype=float)

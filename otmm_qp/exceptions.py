@@ -125,8 +125,7 @@ class UnreachableTrajectory(ConfigError):
 
 
 class OutputPathError(OtmmError):
-    """An output path is unusable: outside the results folder, not a writable directory, too
-    long, or already holding results.
+    """An output path is unusable (outside the results folder, not writable, already used).
 
     Attributes:
         path: The offending path (as given).

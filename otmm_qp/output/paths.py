@@ -99,9 +99,8 @@ def ensure_inside(root: Path, path: Path) -> Path:
     resolved_root = Path(os.path.realpath(root))
     resolved = Path(os.path.realpath(path))
     if resolved != resolved_root and resolved_root not in resolved.parents:
-        raise OutputPathError(
-            str(path), f"resolves to {str(resolved)[:200]!r}, outside the results folder {str(resolved_root)[:200]!r}"
-        )
+        shown = str(resolved)[:200]
+        raise OutputPathError(str(path), f"resolves to {shown!r}, outside the results folder")
     return resolved
 
 

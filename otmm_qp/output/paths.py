@@ -83,6 +83,14 @@ class UniqueNames:
         return slug
 
 
+def unique_names(
+    names: Iterable[str], reserved: Iterable[str] = RESERVED_NAMES, max_length: int = 64
+) -> dict[str, str]:
+    """``{name: unique slug}`` for ``names`` in order (see :class:`UniqueNames`)."""
+    scope = UniqueNames(reserved, max_length)
+    return {name: scope.get(name) for name in names}
+
+
 def ensure_inside(root: Path, path: Path) -> Path:
     """Resolve ``path`` (symlinks included) and require it to lie inside ``root``.
 

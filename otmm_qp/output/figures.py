@@ -670,7 +670,8 @@ def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None
         if out_dir is None:
             return
         name = prepared.config.name
-        stems = unique_names(c.name for c in prepared.controllers)
+        # Same order as the runner's (config order), so a PNG is named like its CSV.
+        stems = unique_names(dict.fromkeys(r.result.controller for r in records))
         modes: dict[str, list[RunResult]] = {str(m): [] for m in prepared.loop_modes}
         for record in records:
             modes.setdefault(record.result.loop_mode, []).append(record.result)

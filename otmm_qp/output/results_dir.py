@@ -34,7 +34,8 @@ def check_out_argument(text: str) -> Path:
 
 
 def _holds_results(folder: Path) -> bool:
-    return any(entry.name != LOCK_NAME for entry in folder.iterdir())
+    """An earlier run wrote here (its summary or report); other files do not count."""
+    return any((folder / name).exists() or (folder / name).is_symlink() for name in RESULT_FILES)
 
 
 def _remove_old_results(folder: Path) -> None:

@@ -115,7 +115,11 @@ def load_yaml(file: Path) -> Any:
         raise ConfigError(
             name, f"not UTF-8 text (byte 0x{raw[error.start]:02x} at offset {error.start})"
         ) from None
-    loader = _StrictLoader(text)
+    try:
+        loader = _StrictLoader(text)
+    except yaml.YAMLError as error:  # the reader refuses control characters up front
+        reason = str(getattr(error, "reason", "") or "unreadable")[:120]
+        raise ConfigError(name, f"malformed YAML: {reason}") from None
     try:
         node = loader.get_single_node()
         if node is None:
@@ -125,7 +129,9 @@ def load_yaml(file: Path) -> Any:
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = str(getattr(error, "problem", None) or type(error).__name__)[:200]
+        problem = str(
+            getattr(error, "problem", None) or getattr(error, "reason", None) or "unreadable"
+        )[:200]
         raise ConfigError(name, f"malformed YAML{where}: {problem}") from None
     except ValueError as error:
         raise ConfigError(name, f"refused YAML: {error}") from None

@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
+import os
+import sys
+import tempfile
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -132,6 +138,45 @@ def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field
             )
 
 
+@contextlib.contextmanager
+def captured_stderr() -> Iterator[None]:
+    """Collect what C libraries (urdfdom) write to file descriptor 2; replay it on success.
+
+    On failure it is dropped, so the one-line error is the only thing the user sees.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+        sink.seek(0)
+        text = sink.read()
+    if text:
+        sys.stderr.write(text.decode("utf-8", "replace"))
+
+
+def load_robot(config: ExperimentConfig, field: str) -> Robot:
+    """Build the robot; numeric warnings (e.g. overflowing link lengths) become a ConfigError.
+
+    Raises:
+        ConfigError: Unknown robot, bad parameter, or parameters that overflow.
+    """
+    try:
+        with captured_stderr(), warnings.catch_warnings():
+            warnings.simplefilter("error")
+            robot: Robot = registry.create(
+                registry.ROBOTS, config.robot.type, config.robot.params, field
+            )
+    except (Warning, ArithmeticError) as error:
+        raise ConfigError(field, f"parameters out of range: {_short(error)}") from None
+    return robot
+
+
 def check_robot(robot: Robot, q0: FloatArray, field: str) -> None:
     """Reject robot parameters that make the kinematics non-finite, and NaN limits.
 
@@ -197,9 +242,7 @@ def prepare_experiment(
     config = suite.experiments[index]
     field = f"{source}: experiments.{index}"
     max_steps = suite.max_steps if max_steps is None else max_steps
-    robot: Robot = registry.create(
-        registry.ROBOTS, config.robot.type, config.robot.params, f"{field}.robot"
-    )
+    robot = load_robot(config, f"{field}.robot")
     try:
         q0 = robot.check_start(np.asarray(config.q0, dtype=float))
     except OtmmError as error:

@@ -82,6 +82,12 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
         GOOD.replace("backend: {type: pinv}", QP[:-1] + ", q_nominal: [1, 2, 3]}"),
         r"controllers\.0 \(OTMM\)",
     ),
+    "2-D circle on a pose arm": (
+        GOOD.replace(
+            "{type: planar, link_lengths: [1.0, 0.8]}", "{type: pinocchio, name: ur5, task: pose}"
+        ).replace("[0.927, -2.5]", "[0.0, -1.2, 1.5, -1.8, 0.3, 0.0]"),
+        r"trajectory: gives points of shape \(2,\) but ur5 has a pose task",
+    ),
     # item 9: step count
     "tiny dt": (GOOD.replace("dt: 0.02", "dt: 1.0e-9"), r"duration.*max_steps.*GiB"),
     "huge duration": (GOOD.replace("duration: 0.2", "duration: 1.0e+9"), r"duration.*GiB"),

@@ -363,48 +363,46 @@ def markdown_to_html(markdown: str) -> str:
     return "\n".join(out)
 
 
-def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
-    """The self-contained HTML report."""
-    title = f"Comparison report: {results_dir.name}"
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{html.escape(title)}</h1>",
-        '<p class="note">Best value per column highlighted (all columns: lower is better; '
-        "runs that blew up or stopped early are not eligible). Metric definitions: "
-        "<code>otmm_qp/metrics/metrics.py</code>.</p>",
-        '<h2 id="tables">Comparison per scenario</h2>',
-    ]
+def _html_row(row: Row, best: dict[str, float]) -> str:
+    """One ``<tr>`` of a scenario table (a skipped controller spans the metric columns)."""
+    controller = html.escape(row.controller)
+    if row.skipped:
+        return (
+            f'<tr data-controller="{controller}"><td>{controller}</td>'
+            f'<td class="skip" colspan="{len(REPORT_COLUMNS)}">'
+            f"{html.escape(row.error_message)}</td></tr>"
+        )
+    note = html.escape(_status_note(row))
+    cells = [f'<td class="name">{controller}{note}</td>']
+    for key, _, spec in REPORT_COLUMNS:
+        value = row.values[key]
+        classes = []
+        if row.eligible and value == best[key]:
+            classes.append("best")
+        if not row.eligible:
+            classes.append("bad")
+        attr = f' class="{" ".join(classes)}"' if classes else ""
+        cells.append(f'<td data-key="{key}"{attr}>{_format(value, spec)}</td>')
+    return f'<tr data-controller="{controller}">' + "".join(cells)
+
+
+def _html_tables(rows: Sequence[Row]) -> list[str]:
+    """One comparison table per (experiment, loop mode)."""
+    parts = []
+    header = "".join(f"<th>{html.escape(label)}</th>" for _, label, _ in REPORT_COLUMNS)
     for (experiment, mode), group in group_scenarios(rows).items():
         best = best_values(group)
         parts.append(f"<h3>{html.escape(experiment)} — {html.escape(mode)}</h3>")
-        header = "".join(f"<th>{html.escape(label)}</th>" for _, label, _ in REPORT_COLUMNS)
         table = [f'<table data-scenario="{html.escape(experiment)}/{html.escape(mode)}">']
         table.append(f"<tr><th>controller</th>{header}</tr>")
-        for row in group:
-            name = f"<td>{html.escape(row.controller)}</td>"
-            if row.skipped:
-                table.append(
-                    f'<tr data-controller="{html.escape(row.controller)}">{name}'
-                    f'<td class="skip" colspan="{len(REPORT_COLUMNS)}">'
-                    f"{html.escape(row.error_message)}</td></tr>"
-                )
-                continue
-            note = html.escape(_status_note(row))
-            cells = [f'<td class="name">{html.escape(row.controller)}{note}</td>']
-            for key, _, spec in REPORT_COLUMNS:
-                value = row.values[key]
-                classes = []
-                if row.eligible and value == best[key]:
-                    classes.append("best")
-                if not row.eligible:
-                    classes.append("bad")
-                attr = f' class="{" ".join(classes)}"' if classes else ""
-                cells.append(f'<td data-key="{key}"{attr}>{_format(value, spec)}</td>')
-            table.append(f'<tr data-controller="{html.escape(row.controller)}">' + "".join(cells))
+        table += [_html_row(row, best) for row in group]
         parts.append('<div class="scroll">' + "".join(table) + "</table></div>")
-    parts.append('<h2 id="ranking">Ranking across scenarios</h2>')
+    return parts
+
+
+def _html_ranking(rows: Sequence[Row]) -> list[str]:
+    """The ranking section."""
+    parts = ['<h2 id="ranking">Ranking across scenarios</h2>']
     parts.append(
         '<p class="note">Score = mean rank over scenarios and the metrics '
         + ", ".join(f"<code>{m}</code>" for m in RANKED_METRICS)
@@ -420,12 +418,12 @@ def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> s
             f"<td>{count}</td></tr>"
         )
     parts.append("".join(table) + "</table>")
-    parts.append('<h2 id="claims">Claims verdict</h2>')
-    if claims:
-        parts.append(f'<div class="claims scroll">{markdown_to_html(claims)}</div>')
-    else:
-        parts.append('<p class="note">No claims.md in this results folder.</p>')
-    parts.append('<h2 id="figures">Figures</h2>')
+    return parts
+
+
+def _html_figures(results_dir: Path) -> list[str]:
+    """The figures section: each PNG of the folder embedded as base64."""
+    parts = ['<h2 id="figures">Figures</h2>']
     figures = _figures(results_dir)
     if not figures:
         parts.append('<p class="note">No figures in this results folder.</p>')
@@ -436,6 +434,30 @@ def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> s
             f'<figure><img alt="{caption}" src="data:image/png;base64,{data}">'
             f"<figcaption>{caption}</figcaption></figure>"
         )
+    return parts
+
+
+def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
+    """The self-contained HTML report."""
+    title = f"Comparison report: {results_dir.name}"
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        '<p class="note">Best value per column highlighted (all columns: lower is better; '
+        "runs that blew up or stopped early are not eligible). Metric definitions: "
+        "<code>otmm_qp/metrics/metrics.py</code>.</p>",
+        '<h2 id="tables">Comparison per scenario</h2>',
+    ]
+    parts += _html_tables(rows)
+    parts += _html_ranking(rows)
+    parts.append('<h2 id="claims">Claims verdict</h2>')
+    if claims:
+        parts.append(f'<div class="claims scroll">{markdown_to_html(claims)}</div>')
+    else:
+        parts.append('<p class="note">No claims.md in this results folder.</p>')
+    parts += _html_figures(results_dir)
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
 

@@ -305,3 +305,25 @@ def test_report_on_read_only_folder(tmp_path: Path, capsys: pytest.CaptureFixtur
         assert main(["report", str(out)]) == 2
     finally:
         out.chmod(0o755)
+
+
+def test_config_loop_modes_match_the_simulation() -> None:
+    import typing
+
+    from otmm_qp.config.schema import LoopMode
+    from otmm_qp.simulation.loop_modes import LOOP_MODES
+
+    assert typing.get_args(LoopMode) == LOOP_MODES
+
+
+def test_unreachable_trajectory_is_typed(tmp_path: Path) -> None:
+    from otmm_qp.config.load import load_config
+    from otmm_qp.exceptions import ConfigError, UnreachableTrajectory
+    from otmm_qp.runner.run import prepare_suite
+
+    config = tmp_path / "c.yaml"
+    config.write_text(GOOD.replace("radius: 0.6", "radius: 5.0"))
+    with pytest.raises(UnreachableTrajectory, match="outside the workspace") as caught:
+        prepare_suite(load_config(config))
+    assert isinstance(caught.value, ConfigError)
+    assert caught.value.field.endswith("experiments.0.trajectory")

@@ -69,6 +69,10 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
         GOOD.replace("[1.0, 0.8]", "[1.0e+308, 0.8]"),
         r"experiments\.0\.(robot|trajectory)",
     ),
+    "velocity limit NaN": (
+        GOOD.replace("[1.0, 0.8]}", "[1.0, 0.8], velocity_limits: [.nan, 1.0]}"),
+        r"experiments\.0\.robot: velocity limits must be > 0",
+    ),
     "long value truncated": (
         GOOD.replace("loop_modes: [clik]", "loop_modes: [" + "x" * 5000 + "]"),
         r"loop_modes\.0.*\.\.\.",

@@ -379,6 +379,67 @@ def _plot_backend(ax: Axes, result: RunResult) -> None:
 # --------------------------------------------------------------------------- public API
 
 
+def _plot_run_measures(
+    ax_qd: Axes, ax_err: Axes, ax_sigma: Axes, result: RunResult, sigma_s: float | None
+) -> None:
+    """Panels (c) joint velocities, (d) tracking error and (e) σ_min / p of one run."""
+    per_step = np.nanmax(np.abs(result.qdot), axis=1) if result.steps else np.zeros(0)
+    band = None
+    if per_step.size:
+        band = _symlog_band([float(np.percentile(per_step, 90)), float(per_step.max())])
+    _plot_speeds(ax_qd, result, band)
+    _title(ax_qd, "(c) joint velocities")
+
+    error_log = _wants_log([result.position_error]) if result.steps else False
+    error_limits = _log_limits([result.position_error]) if error_log else None
+    _plot_error(ax_err, result, error_log, error_limits)
+    _title(ax_err, "(d) tracking error")
+
+    sigma_values = [result.sigma_min] + ([np.array([sigma_s])] if sigma_s else [])
+    sigma_log = _wants_log(sigma_values) if result.steps else False
+    _plot_sigma(
+        ax_sigma, result, sigma_s, sigma_log, _log_limits(sigma_values) if sigma_log else None
+    )
+    if _filter_acted(result):
+        _plot_p(ax_sigma.twinx(), result)
+        _title(ax_sigma, "(e) σ_min and filter level p")
+    else:
+        _title(ax_sigma, f"(e) σ_min ({_no_filter_note(result)})")
+
+
+def _finish_run_axes(ax_path: Axes, time_axes: Sequence[Axes], result: RunResult) -> None:
+    """Status marks, the stop line, grids, shared time range and labels of a run figure."""
+    ax_q, ax_qd, ax_err, ax_sigma, ax_weak = time_axes
+    statuses: list[str] = []
+    for ax in (ax_qd, ax_err, ax_sigma):
+        statuses = _mark_statuses(ax, result) or statuses
+    if statuses:
+        ax_qd.legend(loc="upper right", fontsize=7, frameon=False, ncols=2)
+    for ax in time_axes:
+        _mark_stop(ax, result)
+        ax.grid(True, linewidth=0.3, alpha=0.5)
+        ax.set_xlim(0.0, max(_time_end(result), result.dt))
+    for ax in (ax_err, ax_sigma, ax_weak):
+        ax.set_xlabel("t [s]")
+    ax_path.grid(True, linewidth=0.3, alpha=0.5)
+
+
+def _run_titles(figure: Figure, result: RunResult) -> None:
+    """Title (experiment · loop mode · controller) and the settings line of a run figure."""
+    figure.suptitle(
+        f"{result.experiment} · {result.loop_mode} · {result.controller}", fontsize=12, y=0.985
+    )
+    figure.text(
+        0.5,
+        0.925,
+        f"filters: {result.filters or 'none'}   backend: {result.backend or '?'}   "
+        f"dt = {result.dt:g} s   steps: {result.steps}{_stop_note(result)}",
+        ha="center",
+        fontsize=8,
+        color=_STOP_COLOUR if result.error_message else "0.3",
+    )
+
+
 def plot_run(result: RunResult, path: Path, sigma_s: float | None = None) -> None:
     """Write one PNG of a run in the paper's layout (2×3 panels).
 
@@ -404,56 +465,10 @@ def plot_run(result: RunResult, path: Path, sigma_s: float | None = None) -> Non
 
     _plot_path(ax_path, result)
     _plot_angles(ax_q, result)
-
-    per_step = np.nanmax(np.abs(result.qdot), axis=1) if result.steps else np.zeros(0)
-    band = None
-    if per_step.size:
-        band = _symlog_band([float(np.percentile(per_step, 90)), float(per_step.max())])
-    _plot_speeds(ax_qd, result, band)
-    _title(ax_qd, "(c) joint velocities")
-
-    error_log = _wants_log([result.position_error]) if result.steps else False
-    error_limits = _log_limits([result.position_error]) if error_log else None
-    _plot_error(ax_err, result, error_log, error_limits)
-    _title(ax_err, "(d) tracking error")
-
-    sigma_values = [result.sigma_min] + ([np.array([sigma_s])] if sigma_s else [])
-    sigma_log = _wants_log(sigma_values) if result.steps else False
-    _plot_sigma(
-        ax_sigma, result, sigma_s, sigma_log, _log_limits(sigma_values) if sigma_log else None
-    )
-    if _filter_acted(result):
-        _plot_p(ax_sigma.twinx(), result)
-        _title(ax_sigma, "(e) σ_min and filter level p")
-    else:
-        _title(ax_sigma, f"(e) σ_min ({_no_filter_note(result)})")
+    _plot_run_measures(ax_qd, ax_err, ax_sigma, result, sigma_s)
     _plot_backend(ax_weak, result)
-
-    statuses: list[str] = []
-    for ax in (ax_qd, ax_err, ax_sigma):
-        statuses = _mark_statuses(ax, result) or statuses
-    if statuses:
-        ax_qd.legend(loc="upper right", fontsize=7, frameon=False, ncols=2)
-    for ax in time_axes:
-        _mark_stop(ax, result)
-        ax.grid(True, linewidth=0.3, alpha=0.5)
-        ax.set_xlim(0.0, max(_time_end(result), result.dt))
-    for ax in (ax_err, ax_sigma, ax_weak):
-        ax.set_xlabel("t [s]")
-    ax_path.grid(True, linewidth=0.3, alpha=0.5)
-
-    figure.suptitle(
-        f"{result.experiment} · {result.loop_mode} · {result.controller}", fontsize=12, y=0.985
-    )
-    figure.text(
-        0.5,
-        0.925,
-        f"filters: {result.filters or 'none'}   backend: {result.backend or '?'}   "
-        f"dt = {result.dt:g} s   steps: {result.steps}{_stop_note(result)}",
-        ha="center",
-        fontsize=8,
-        color=_STOP_COLOUR if result.error_message else "0.3",
-    )
+    _finish_run_axes(ax_path, (ax_q, ax_qd, ax_err, ax_sigma, ax_weak), result)
+    _run_titles(figure, result)
     _save(figure, path)
 
 

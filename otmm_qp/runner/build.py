@@ -231,6 +231,35 @@ def dry_run(controller: Controller, robot: Robot, state: KinematicState, xdot: F
     trial.step(state, xdot, np.zeros(robot.nv))
 
 
+def check_controllers(
+    controllers: list[Controller],
+    robot: Robot,
+    state: KinematicState,
+    trajectory: Trajectory,
+    field: str,
+) -> None:
+    """Dry-run every controller at the start (see :func:`dry_run`).
+
+    Raises:
+        ConfigError: Naming the controller whose parameters do not fit the robot.
+    """
+    xdot = np.asarray(trajectory.sample(0.0)[1], dtype=float)
+    for j, controller in enumerate(controllers):
+        where = f"{field}.controllers.{j} ({controller.name})"
+        try:
+            dry_run(controller, robot, state, xdot)
+        except OtmmError as error:
+            if not isinstance(error, DimensionError | ConfigError):
+                continue  # a run-time condition (e.g. infeasible), reported by the run itself
+            raise ConfigError(where, _short(error)) from None
+        except (ValueError, TypeError, IndexError, ArithmeticError) as error:
+            raise ConfigError(
+                where,
+                f"fails on its first step with robot {robot.name} (nv = {robot.nv}, "
+                f"task {robot.task_dim}): {_short(error)}",
+            ) from None
+
+
 def prepare_experiment(
     suite: SuiteConfig, index: int, source: str = "config", max_steps: int | None = None
 ) -> PreparedExperiment:
@@ -276,23 +305,9 @@ def prepare_experiment(
     check_robot(robot, q0, field)
     check_reachable(robot, trajectory, duration, f"{field}.trajectory")
     controllers, skipped = _build_controllers(config, field)
-    state = KinematicState.compute(robot, q0, weight)
-    xdot = np.asarray(trajectory.sample(0.0)[1], dtype=float)
-    for j, controller in enumerate(controllers):
-        try:
-            dry_run(controller, robot, state, xdot)
-        except OtmmError as error:
-            if not isinstance(error, DimensionError | ConfigError):
-                continue  # a run-time condition (e.g. infeasible), reported by the run itself
-            raise ConfigError(
-                f"{field}.controllers.{j} ({controller.name})", _short(error)
-            ) from None
-        except (ValueError, TypeError, IndexError, ArithmeticError) as error:
-            raise ConfigError(
-                f"{field}.controllers.{j} ({controller.name})",
-                f"fails on its first step with robot {robot.name} (nv = {robot.nv}, "
-                f"task {robot.task_dim}): {_short(error)}",
-            ) from None
+    check_controllers(
+        controllers, robot, KinematicState.compute(robot, q0, weight), trajectory, field
+    )
     return PreparedExperiment(
         config=config,
         robot=robot,

@@ -10,12 +10,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
-import signal
 import sys
 from collections.abc import Sequence
-from types import FrameType, ModuleType
+from types import ModuleType
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.runner import interrupt
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -42,10 +42,6 @@ def _parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
     return parser, modules
 
 
-def _terminate(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``otmm-qp`` console script."""
     parser, modules = _parser()
@@ -53,9 +49,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not arguments:
         arguments = ["run"]  # no command: the paper reproduction
     args = parser.parse_args(arguments)
-    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return int(modules[args.command or "run"].run(args))
+        with interrupt.handle_stop_signals():
+            status = int(modules[args.command or "run"].run(args))
+            interrupt.check()  # a stop request Python swallowed still counts
+            return status
     except OtmmError as error:
         print(f"otmm-qp: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -67,8 +65,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from matplotlib.transforms import blended_transform_factory
 
 from otmm_qp.output.paths import atomic_open, safe_name, unique_names
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
@@ -631,6 +632,7 @@ def _die_with_parent() -> None:
     The parent handles Ctrl-C and shuts the pool down.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     with contextlib.suppress(OSError, AttributeError):
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
@@ -647,7 +649,7 @@ def _draw_all(jobs: list[_Job], workers: int) -> None:
         )
         try:
             for _ in pool.map(_draw_job, jobs):
-                pass  # re-raises the first failure of a worker
+                interrupt.check()  # re-raises the first failure of a worker, or a stop
         except BaseException:
             # Interrupted (SIGINT/SIGTERM) or failed: drop the queued drawings, then wait for
             # the workers to finish their current one and exit; none is left behind.
@@ -657,6 +659,7 @@ def _draw_all(jobs: list[_Job], workers: int) -> None:
         return
     for job in jobs:
         _draw_job(job)
+        interrupt.check()
 
 
 def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None) -> ExperimentHook:

@@ -13,6 +13,7 @@ from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
 from otmm_qp.output.paths import ensure_inside, safe_name, unique_names
 from otmm_qp.output.summary import summary_row, write_summary_csv, write_summary_markdown
+from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import PreparedExperiment, SkippedController, prepare_experiment
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.simulation.simulate import simulate
@@ -167,6 +168,7 @@ def run_suite(
             # Each run is on disk (atomically) and in the summary as soon as it ends, so an
             # interrupted suite is always reportable.
             outcome.records.append(record)
+            interrupt.check()
             if out_dir is not None:
                 tic = time.perf_counter()
                 record.result.write_csv(run_csv_path(out_dir, record.result, names))

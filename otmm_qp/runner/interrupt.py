@@ -1,0 +1,45 @@
+"""SIGINT and SIGTERM as one "stop" request that cannot be lost.
+
+The handler raises KeyboardInterrupt, but Python drops an exception raised where it cannot
+propagate (e.g. inside a fork or logging hook), so the request is also remembered and
+:func:`check` re-raises it at the next safe point (after each run, after each figure).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+from collections.abc import Iterator
+from types import FrameType
+
+_requested = False
+
+
+def _request(signum: int, frame: FrameType | None) -> None:
+    global _requested
+    _requested = True
+    raise KeyboardInterrupt
+
+
+def requested() -> bool:
+    """A stop was requested by SIGINT or SIGTERM."""
+    return _requested
+
+
+def check() -> None:
+    """Raise KeyboardInterrupt if a stop was requested (and possibly swallowed)."""
+    if _requested:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def handle_stop_signals() -> Iterator[None]:
+    """Route SIGINT and SIGTERM to :func:`_request` inside the block."""
+    global _requested
+    _requested = False
+    previous = {s: signal.signal(s, _request) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)

@@ -218,7 +218,8 @@ class QpBackend(BoxQpBackend):
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"
             preferred = self.unconstrained(state, xdot, posture)
             return self.fallback(step, detail, data.copy(), solution, preferred)
-        qdot = np.clip(solution.x, self.bounds[0], self.bounds[1])
+        qdot = solution.x  # a fresh array: clipped into the box in place
+        np.minimum(np.maximum(qdot, self.bounds[0], out=qdot), self.bounds[1], out=qdot)
         return qdot, self.classify(qdot, SOLVER_TOL)
 
     def _enforce_barrier(

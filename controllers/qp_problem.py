@@ -92,12 +92,14 @@ class JointLimits(NamedTuple):
     Attributes:
         theta: ``[θ_min; θ_max]`` [rad or m], shape ``(2, nv)`` (±inf allowed).
         speed: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
+        negative_speed: ``−q̇_max`` [rad/s], shape ``(nv,)``.
         gain: ``g/dt`` [1/s], the position-limit gain per control period.
         acceleration_step: ``a_max·dt`` [rad/s], shape ``(nv,)``, or None (no limit).
     """
 
     theta: FloatArray
     speed: FloatArray
+    negative_speed: FloatArray
     gain: float
     acceleration_step: FloatArray | None
 
@@ -114,13 +116,15 @@ class JointLimits(NamedTuple):
         speed = np.array(velocity_limits, dtype=float)
         theta = np.array(position_limits, dtype=float).reshape(2, speed.shape[0])
         step = None if acceleration_limit is None else acceleration_limit * dt
-        return cls(theta, speed, limit_gain / dt, step)
+        return cls(theta, speed, -speed, limit_gain / dt, step)
 
 
 def position_box(theta: FloatArray, limits: JointLimits, out: FloatArray) -> FloatArray:
-    r"""``[(g/dt)(θ_min − θ); (g/dt)(θ_max − θ)]`` [rad/s] into ``out`` (2, nv)."""
-    with np.errstate(invalid="ignore"):  # inf − inf cannot occur: limits are finite or ±inf
-        np.subtract(limits.theta, theta, out=out)
+    r"""``[(g/dt)(θ_min − θ); (g/dt)(θ_max − θ)]`` [rad/s] into ``out`` (2, nv).
+
+    Infinite limits give infinite bounds (θ is finite, ``g/dt > 0``: no NaN can arise).
+    """
+    np.subtract(limits.theta, theta, out=out)
     return np.multiply(limits.gain, out, out=out)
 
 
@@ -152,7 +156,7 @@ def velocity_bounds(
     scratch = np.empty((2, nv)) if scratch is None else scratch
     lower, upper = out[0], out[1]
     position_box(theta, limits, scratch)
-    np.maximum(np.negative(limits.speed), scratch[0], out=lower)
+    np.maximum(limits.negative_speed, scratch[0], out=lower)
     np.minimum(limits.speed, scratch[1], out=upper)
     if limits.acceleration_step is not None:
         np.subtract(qdot_prev, limits.acceleration_step, out=scratch[0])
@@ -241,7 +245,7 @@ def velocity_box(
     else:
         step = limits.acceleration_step
         acceleration = (qdot_prev - step, qdot_prev + step)
-    velocity = (-limits.speed, limits.speed)
+    velocity = (limits.negative_speed, limits.speed)
     return VelocityBox(velocity, (position[0], position[1]), acceleration, bounds[0], bounds[1])
 
 
@@ -305,6 +309,6 @@ def build_qp(
     np.negative(linear, out=linear)
     if posture_weight > 0.0 and posture_velocity is not None:
         linear -= posture_weight * posture_velocity
-    np.clip(bounds[0], -BIG, BIG, out=problem.lb)
-    np.clip(bounds[1], -BIG, BIG, out=problem.ub)
+    np.minimum(np.maximum(bounds[0], -BIG, out=problem.lb), BIG, out=problem.lb)
+    np.minimum(np.maximum(bounds[1], -BIG, out=problem.ub), BIG, out=problem.ub)
     return problem

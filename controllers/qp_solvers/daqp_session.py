@@ -38,13 +38,13 @@ class DaqpSession(QpSession):
 
     def update(self, problem: QpProblem) -> None:
         """New ``P``, ``q``, bounds (and rows); the active set of the last solve is kept."""
+        if not problem.C.shape[0]:  # box only: the bounds are the problem's own arrays
+            self._model.update(H=problem.P, f=problem.q, bupper=problem.ub, blower=problem.lb)
+            return
         self._stack(problem)
-        if problem.C.shape[0]:
-            self._model.update(
-                H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
-            )
-        else:
-            self._model.update(H=problem.P, f=problem.q, bupper=self._upper, blower=self._lower)
+        self._model.update(
+            H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
+        )
 
     def solve(self) -> Solution:
         """Solve; found when DAQP's exit flag is positive."""

@@ -49,9 +49,10 @@ class QpProblem(NamedTuple):
         )  # fmt: skip
 
     @property
-    def structure(self) -> tuple[int, int, tuple[bool, ...]]:
-        """``(n, m, equality flags)``: what a solver session allocates for."""
-        return self.q.shape[0], self.C.shape[0], tuple(bool(e) for e in self.l == self.u)
+    def structure(self) -> tuple[int, int, bytes]:
+        """``(n, m, equality flags as bytes)``: what a solver session allocates for."""
+        m = self.C.shape[0]
+        return self.q.shape[0], m, (self.l == self.u).tobytes() if m else b""
 
     def copy(self) -> QpProblem:
         """A deep copy (a snapshot of buffers that the next step overwrites)."""

@@ -35,7 +35,7 @@ class QpSession(abc.ABC):
     name: str = "session"
 
     def __init__(self) -> None:
-        self._structure: tuple[int, int, tuple[bool, ...]] | None = None
+        self._structure: tuple[int, int, bytes] | None = None
 
     @abc.abstractmethod
     def setup(self, problem: QpProblem) -> None:

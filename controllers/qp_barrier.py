@@ -102,9 +102,7 @@ class SingularityBarrier:
         r""":math:`-\gamma(\sigma_{min} - \sigma_{safe})` [task units]: the row's lower bound."""
         return -self.gain * (state.sigma_min - self.sigma_safe)
 
-    def predicted(
-        self, robot: Robot, state: KinematicState, qdot: FloatArray, dt: float
-    ) -> float:
+    def predicted(self, robot: Robot, state: KinematicState, qdot: FloatArray, dt: float) -> float:
         r""":math:`dt\,\dot\sigma_{min}(\dot q)` [task units]: the row's value at ``qdot``."""
         return dt * sigma_min_rate(robot, state, qdot)
 

@@ -167,7 +167,8 @@ class BoxQpBackend(Backend):
         box = self.box
         assert box is not None  # noqa: S101 - begin_step ran this step
         lower, upper = box.relaxed()
-        use_preferred = self.infeasible_policy == "dls" and preferred is not None
-        target = preferred if use_preferred else np.zeros_like(lower)
+        target = np.zeros_like(lower)
+        if self.infeasible_policy == "dls" and preferred is not None:
+            target = preferred
         status = Status.RELAXED if box.empty else Status.INFEASIBLE
         return np.clip(target, lower, upper), status

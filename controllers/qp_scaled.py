@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 import qpsolvers
 
 from otmm_qp.backends.backend import BackendOutput, rank_cutoff
@@ -15,8 +16,9 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend
 from otmm_qp_controllers.qp_problem import BIG, QpProblem
-from otmm_qp_controllers.qp_solvers import SESSIONS
+from otmm_qp_controllers.qp_solvers import SESSIONS, Solution
 
+BoolArray = npt.NDArray[np.bool_]
 POLICIES = ("raise", "hold")
 #: Solvers that solve this near-LP reliably. ProxQP (proxsuite 0.8, directly or through
 #: qpsolvers 4.13) reports it primal infeasible for every tolerance tried, so it is excluded.
@@ -26,8 +28,8 @@ SCALED_SOLVERS = ("clarabel", "daqp", "osqp", "quadprog")
 RANGE_TOL = 1e-9
 
 
-def range_split(state: KinematicState, xdot: FloatArray) -> tuple[FloatArray, bool]:
-    """Kept singular directions (mask over σ, :func:`rank_cutoff`) and whether ``ẋ_w ∈ range(J_w)``."""
+def range_split(state: KinematicState, xdot: FloatArray) -> tuple[BoolArray, bool]:
+    """Mask of the kept singular values (:func:`rank_cutoff`) and whether ``ẋ_w ∈ range(J_w)``."""
     keep = state.sigma > rank_cutoff(state.sigma)
     coefficients = state.U[:, keep].T @ xdot
     outside = xdot - state.U[:, keep] @ coefficients
@@ -184,9 +186,9 @@ class ScaledQpBackend(BoxQpBackend):
         return Status.STUCK if alpha < self.stuck_threshold else self.classify(qdot, tol)
 
     def _fail(
-        self, step: int, detail: str, solution: object, problem: QpProblem | None = None
+        self, step: int, detail: str, solution: Solution | None, problem: QpProblem | None = None
     ) -> BackendOutput:
         evidence = self.problem if problem is None else problem
-        qdot, status = self.fallback(step, detail, evidence, solution)  # type: ignore[arg-type]
+        qdot, status = self.fallback(step, detail, evidence, solution)
         self.alpha = 0.0
         return BackendOutput(qdot, status, scale=0.0)

@@ -206,8 +206,9 @@ def test_solver_failure_carries_problem_and_answer() -> None:
     assert info.value.solution == Solution(None, False, "exitflag -1")
     problem = info.value.problem
     assert isinstance(problem, QpProblem)
-    np.testing.assert_allclose(problem.P, state.task_jacobian.T @ state.task_jacobian
-                               + 1e-3 * np.eye(7))
+    np.testing.assert_allclose(
+        problem.P, state.task_jacobian.T @ state.task_jacobian + 1e-3 * np.eye(7)
+    )
     holding = QpBackend(solver="daqp", fast_path=False, infeasible_policy="hold")
     holding.bind(PANDA, DT)
     holding.session = _FailingSession()  # type: ignore[assignment]

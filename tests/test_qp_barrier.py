@@ -1,4 +1,4 @@
-"""The qp backend's singularity barrier: the row holds whenever feasible, σ_min stays above σ_safe."""
+"""The qp singularity barrier: the row holds whenever feasible, σ_min stays above σ_safe."""
 
 from __future__ import annotations
 
@@ -145,9 +145,10 @@ def test_ur5_wrist_scenario_keeps_sigma_min_near_sigma_safe() -> None:
         {
             "name": "qp+barrier",
             "backend": {
-                "type": "qp", "damping": 1.0e-3,
+                "type": "qp",
+                "damping": 1.0e-3,
                 "singularity_barrier": {"sigma_safe": 0.02, "gain": 1.0},
-            },  # fmt: skip
+            },
         },
     ]
     suite = parse_config(data, "ur5_wrist+barrier")

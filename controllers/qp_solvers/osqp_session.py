@@ -17,7 +17,7 @@ _SOLVED = (1, 2)
 
 
 class OsqpSession(QpSession):
-    r"""``osqp.OSQP`` with the constraint matrix :math:`A = [I; C]`, bounds ``[lb; l]``, ``[ub; u]``.
+    r"""``osqp.OSQP`` with constraint matrix :math:`A = [I; C]`, bounds ``[lb; l]``, ``[ub; u]``.
 
     The sparsity patterns are dense and fixed at :meth:`setup` (upper triangle of ``P``,
     every entry of ``C``), so :meth:`update` only rewrites values.

@@ -50,7 +50,7 @@ class QpSession(abc.ABC):
         """Solve the loaded problem."""
 
     def load(self, problem: QpProblem) -> None:
-        """:meth:`update` when ``problem`` has the structure of the last load, else :meth:`setup`."""
+        """:meth:`update` if ``problem`` has the last load's structure, else :meth:`setup`."""
         structure = problem.structure
         if structure == self._structure:
             self.update(problem)

@@ -110,9 +110,11 @@ def time_interleaved(rows: dict[str, Step], count: int, rounds: int) -> dict[str
     """Per-step times [µs] of each row, rows alternating within every round."""
     samples: dict[str, list[float]] = {name: [] for name in rows}
     clock = time.perf_counter
+    items = list(rows.items())
     for _ in range(rounds):
         for k in range(count):  # every state in turn, each row on it: same machine load
-            for name, step in rows.items():
+            shift = k % len(items)  # rotate who runs first (right after another row's work)
+            for name, step in items[shift:] + items[:shift]:
                 start = clock()
                 step(k)
                 samples[name].append(clock() - start)

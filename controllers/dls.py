@@ -20,6 +20,9 @@ class DampedLeastSquaresBackend(Backend):
 
     Args:
         damping: Damping factor λ ≥ 0 [task units]; λ = 0 is the pseudoinverse.
+
+    ``BackendOutput.damping`` is λ; status ``saturated`` when ``q̇`` exceeds the robot's
+    joint speed limits (see :mod:`otmm_qp.status`).
     """
 
     name = "dls"
@@ -33,6 +36,6 @@ class DampedLeastSquaresBackend(Backend):
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Damped solution [rad/s], shape ``(nv,)``."""
-        return BackendOutput(
-            damped_least_squares(state, xdot, self.damping**2), damping=self.damping
+        return self.unconstrained_output(
+            damped_least_squares(state, xdot, self.damping**2), self.damping
         )

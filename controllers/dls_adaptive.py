@@ -22,7 +22,9 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
         k = \begin{cases}\alpha\,(1 - w/w_0)^2 & w < w_0\\ 0 & \text{otherwise}\end{cases},\qquad
         \dot q = J^\top(JJ^\top + k I)^{-1}\dot x
 
-    ``k`` is added to :math:`JJ^\top` directly (paper eq. 6 with α → k).
+    ``k`` is added to :math:`JJ^\top` directly (paper eq. 6 with α → k), so the damping
+    factor reported in ``BackendOutput.damping`` is :math:`\lambda = \sqrt{k}` [task units].
+    Status ``saturated`` when ``q̇`` exceeds the robot's joint speed limits.
 
     Give exactly one of ``w0`` (a constant threshold on ``w``) or ``sigma_threshold``: then
     :math:`w_0 = \sigma_{th}\prod_{i<n}\sigma_i` is evaluated each step from the other
@@ -53,7 +55,7 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
         self.sigma_threshold = sigma_threshold
 
     def damping_for(self, state: KinematicState) -> float:
-        """Damping ``k`` added to ``JJᵀ`` at this state."""
+        """Damping ``k = λ²`` [task units²] added to ``JJᵀ`` at this state."""
         sigma = state.sigma
         if sigma.size < state.task_dim:
             return self.alpha
@@ -72,4 +74,4 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
     ) -> BackendOutput:
         """Adaptively damped solution [rad/s], shape ``(nv,)``."""
         k = self.damping_for(state)
-        return BackendOutput(damped_least_squares(state, xdot, k), damping=k)
+        return self.unconstrained_output(damped_least_squares(state, xdot, k), float(np.sqrt(k)))

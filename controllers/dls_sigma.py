@@ -20,6 +20,9 @@ class SigmaDampedLeastSquaresBackend(Backend):
         \sigma_{min} < \varepsilon\\ 0 & \text{otherwise}\end{cases},\qquad
         \dot q = J^\top(JJ^\top + \lambda^2 I)^{-1}\dot x
 
+    ``BackendOutput.damping`` is λ; status ``saturated`` when ``q̇`` exceeds the robot's
+    joint speed limits.
+
     Args:
         lambda_max: Largest damping factor λ_max > 0 [task units].
         epsilon: Singular region width ε > 0 [task units].
@@ -43,4 +46,4 @@ class SigmaDampedLeastSquaresBackend(Backend):
         mu = 0.0
         if sigma_min < self.epsilon:
             mu = self.lambda_max**2 * (1.0 - (sigma_min / self.epsilon) ** 2)
-        return BackendOutput(damped_least_squares(state, xdot, mu), damping=float(np.sqrt(mu)))
+        return self.unconstrained_output(damped_least_squares(state, xdot, mu), float(np.sqrt(mu)))

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from otmm_qp.backends.backend import Backend, BackendOutput, truncated_pseudoinverse_apply
+from otmm_qp.backends.backend import (
+    RCOND,
+    Backend,
+    BackendOutput,
+    truncated_pseudoinverse_apply,
+)
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
@@ -17,13 +22,17 @@ class PseudoInverseBackend(Backend):
     only the achievable rows are used (the paper's Fig. 7 case). Near a singularity
     nothing is damped: joint speeds grow as ``1/σ_min``, which is the behaviour under study.
 
+    Status ``saturated`` when ``q̇`` exceeds the robot's joint speed limits (see
+    :mod:`otmm_qp.status`).
+
     Args:
-        rcond: Relative truncation threshold, in ``[0, 1)``.
+        rcond: Relative truncation threshold, in ``[0, 1)`` (default: the shared
+            :data:`~otmm_qp.backends.backend.RCOND`).
     """
 
     name = "pinv"
 
-    def __init__(self, rcond: float = 1e-10) -> None:
+    def __init__(self, rcond: float = RCOND) -> None:
         if not 0.0 <= rcond < 1.0:
             raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
         self.rcond = float(rcond)
@@ -32,4 +41,4 @@ class PseudoInverseBackend(Backend):
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """``q̇ = J_w^+ ẋ_w`` [rad/s], shape ``(nv,)``."""
-        return BackendOutput(truncated_pseudoinverse_apply(state, xdot, self.rcond))
+        return self.unconstrained_output(truncated_pseudoinverse_apply(state, xdot, self.rcond))

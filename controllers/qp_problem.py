@@ -1,4 +1,4 @@
-r"""Building blocks of the QP differential-IK backends: joint-velocity boxes and the QP.
+r"""The QP differential-IK formulation, pure: joint-velocity boxes and the QP data.
 
 Every joint limit of the velocity-level problem is a box on ``q̇`` (shape ``(nv,)``):
 
@@ -11,66 +11,38 @@ Every joint limit of the velocity-level problem is a box on ``q̇`` (shape ``(nv
 
 so the feasible set is their intersection ``[lb, ub]`` and it is empty exactly when some
 ``lb_i > ub_i`` (e.g. a start outside the position limits farther than ``v_max·dt/g``).
-Building (:func:`build_qp`) is kept apart from solving (the backends).
+
+Each equation is written once. :func:`velocity_bounds` and :func:`build_qp` take an optional
+``out=`` to write into preallocated arrays (the per-step path of the backends); without it
+they allocate (the reference path). Building is kept apart from solving
+(:mod:`otmm_qp_controllers.qp_solvers`).
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
-import qpsolvers
 
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp_controllers.qp_solvers.problem import BIG, QpProblem
+from otmm_qp_controllers.qp_solvers.qpsolvers_session import SOLVER_OPTIONS
 
-#: Infinite bounds are passed to the solvers as ±BIG [rad/s] (some reject inf).
-BIG = 1e9
-
-#: Solver options giving ~1e-10 accuracy; active-set solvers (daqp, quadprog) are exact.
-#: (Residual tolerances act on ``Hq̇``, so the error on ``q̇`` is about ``eps/λ``.)
-SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
-    "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12},
-    "daqp": {},
-    "osqp": {"eps_abs": 1e-10, "eps_rel": 1e-10, "polishing": True, "max_iter": 20000},
-    "proxqp": {"eps_abs": 1e-12, "eps_rel": 0.0, "max_iter": 100000},
-    "quadprog": {},
-}
-
-#: qpsolvers backends that want a sparse ``P`` (a dense one only triggers a warning).
-SPARSE_SOLVERS = ("clarabel", "osqp")
-
-
-def solve_with_qpsolvers(problem: qpsolvers.Problem, solver: str) -> FloatArray | None:
-    """Solve ``problem`` with the named qpsolvers backend at :data:`SOLVER_OPTIONS` accuracy.
-
-    Returns:
-        The solution, or None when the solver reports none.
-    """
-    if solver in SPARSE_SOLVERS:
-        import scipy.sparse as sparse
-
-        problem = qpsolvers.Problem(
-            sparse.csc_matrix(problem.P),
-            problem.q,
-            None if problem.G is None else sparse.csc_matrix(problem.G),
-            problem.h,
-            None if problem.A is None else sparse.csc_matrix(problem.A),
-            problem.b,
-            problem.lb,
-            problem.ub,
-        )
-    options = SOLVER_OPTIONS.get(solver, {})
-    if solver != "osqp":
-        solution = qpsolvers.solve_problem(problem, solver=solver, **options)
-    else:
-        with warnings.catch_warnings():
-            # osqp 1.x warns that solve()'s raise_error default will change; qpsolvers calls it.
-            warnings.simplefilter("ignore", PendingDeprecationWarning)
-            solution = qpsolvers.solve_problem(problem, solver=solver, **options)
-    return solution.x if solution.found and solution.x is not None else None
+__all__ = [
+    "BIG",
+    "SOLVER_OPTIONS",
+    "JointLimits",
+    "QpProblem",
+    "VelocityBox",
+    "active_bound",
+    "build_qp",
+    "check_limit_parameters",
+    "per_joint",
+    "velocity_bounds",
+    "velocity_box",
+]
 
 
 def check_limit_parameters(
@@ -112,6 +84,86 @@ def per_joint(value: float | Sequence[float] | None, name: str, nv: int) -> Floa
     if array.shape != (nv,):
         raise DimensionError(name, (nv,), array.shape)
     return array
+
+
+class JointLimits(NamedTuple):
+    """The step-invariant joint-limit data of one run.
+
+    Attributes:
+        theta: ``[θ_min; θ_max]`` [rad or m], shape ``(2, nv)`` (±inf allowed).
+        speed: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
+        negative_speed: ``−q̇_max`` [rad/s], shape ``(nv,)``.
+        gain: ``g/dt`` [1/s], the position-limit gain per control period.
+        acceleration_step: ``a_max·dt`` [rad/s], shape ``(nv,)``, or None (no limit).
+    """
+
+    theta: FloatArray
+    speed: FloatArray
+    negative_speed: FloatArray
+    gain: float
+    acceleration_step: FloatArray | None
+
+    @classmethod
+    def make(
+        cls,
+        position_limits: tuple[FloatArray, FloatArray],
+        velocity_limits: FloatArray,
+        dt: float,
+        limit_gain: float,
+        acceleration_limit: FloatArray | None,
+    ) -> JointLimits:
+        """From the robot's limits, ``dt`` [s], ``g ∈ (0, 1]`` and ``a_max`` [rad/s²] or None."""
+        speed = np.array(velocity_limits, dtype=float)
+        theta = np.array(position_limits, dtype=float).reshape(2, speed.shape[0])
+        step = None if acceleration_limit is None else acceleration_limit * dt
+        return cls(theta, speed, -speed, limit_gain / dt, step)
+
+
+def position_box(theta: FloatArray, limits: JointLimits, out: FloatArray) -> FloatArray:
+    r"""``[(g/dt)(θ_min − θ); (g/dt)(θ_max − θ)]`` [rad/s] into ``out`` (2, nv).
+
+    Infinite limits give infinite bounds (θ is finite, ``g/dt > 0``: no NaN can arise).
+    """
+    np.subtract(limits.theta, theta, out=out)
+    return np.multiply(limits.gain, out, out=out)
+
+
+def velocity_bounds(
+    theta: FloatArray,
+    qdot_prev: FloatArray,
+    limits: JointLimits,
+    out: FloatArray | None = None,
+    scratch: FloatArray | None = None,
+) -> FloatArray:
+    r"""The intersection ``[lb; ub]`` of the velocity, position and acceleration boxes.
+
+    .. math::
+        lb = \max(-\dot q_{max},\ (g/dt)(\theta_{min}-\theta),\ \dot q_{prev}-a_{max}dt),\quad
+        ub = \min(\dot q_{max},\ (g/dt)(\theta_{max}-\theta),\ \dot q_{prev}+a_{max}dt)
+
+    Args:
+        theta: Joint coordinates [rad or m], shape ``(nv,)``.
+        qdot_prev: Previous joint velocity [rad/s], shape ``(nv,)``.
+        limits: The run's :class:`JointLimits`.
+        out: Where to write ``[lb; ub]``, shape ``(2, nv)``; allocated when None.
+        scratch: Work array of shape ``(2, nv)``; allocated when None.
+
+    Returns:
+        ``out`` [rad/s], shape ``(2, nv)``.
+    """
+    nv = limits.speed.shape[0]
+    out = np.empty((2, nv)) if out is None else out
+    scratch = np.empty((2, nv)) if scratch is None else scratch
+    lower, upper = out[0], out[1]
+    position_box(theta, limits, scratch)
+    np.maximum(limits.negative_speed, scratch[0], out=lower)
+    np.minimum(limits.speed, scratch[1], out=upper)
+    if limits.acceleration_step is not None:
+        np.subtract(qdot_prev, limits.acceleration_step, out=scratch[0])
+        np.maximum(lower, scratch[0], out=lower)
+        np.add(qdot_prev, limits.acceleration_step, out=scratch[1])
+        np.minimum(upper, scratch[1], out=upper)
+    return out
 
 
 class VelocityBox(NamedTuple):
@@ -173,11 +225,7 @@ def velocity_box(
     limit_gain: float,
     acceleration_limit: FloatArray | None,
 ) -> VelocityBox:
-    r"""The joint-velocity boxes at joint coordinates ``theta``.
-
-    .. math::
-        lb = \max(-\dot q_{max},\ -g(\theta-\theta_{min})/dt,\ \dot q_{prev}-a_{max}dt),\quad
-        ub = \min(\dot q_{max},\ g(\theta_{max}-\theta)/dt,\ \dot q_{prev}+a_{max}dt)
+    r"""Every joint-velocity box at joint coordinates ``theta`` (pure; see :func:`velocity_bounds`).
 
     Args:
         theta: Joint coordinates [rad or m], shape ``(nv,)``.
@@ -188,140 +236,79 @@ def velocity_box(
         limit_gain: ``g ∈ (0, 1]``: fraction of the remaining distance allowed per step.
         acceleration_limit: ``a_max`` [rad/s²], shape ``(nv,)``, or None.
     """
-    with np.errstate(invalid="ignore"):  # inf − inf cannot occur: limits are finite or ±inf
-        pos_lower = (limit_gain / dt) * (position_limits[0] - theta)
-        pos_upper = (limit_gain / dt) * (position_limits[1] - theta)
-    vel = (-velocity_limits, velocity_limits)
-    if acceleration_limit is None:
+    limits = JointLimits.make(position_limits, velocity_limits, dt, limit_gain, acceleration_limit)
+    bounds = velocity_bounds(theta, qdot_prev, limits)
+    position = position_box(theta, limits, np.empty_like(bounds))
+    if limits.acceleration_step is None:
         inf = np.full(theta.shape, np.inf)
-        acc = (-inf, inf)
-        lower = np.maximum(vel[0], pos_lower)
-        upper = np.minimum(vel[1], pos_upper)
+        acceleration = (-inf, inf)
     else:
-        step = acceleration_limit * dt
-        acc = (qdot_prev - step, qdot_prev + step)
-        lower = np.maximum(np.maximum(vel[0], pos_lower), acc[0])
-        upper = np.minimum(np.minimum(vel[1], pos_upper), acc[1])
-    return VelocityBox(vel, (pos_lower, pos_upper), acc, lower, upper)
+        step = limits.acceleration_step
+        acceleration = (qdot_prev - step, qdot_prev + step)
+    velocity = (limits.negative_speed, limits.speed)
+    return VelocityBox(velocity, (position[0], position[1]), acceleration, bounds[0], bounds[1])
+
+
+def active_bound(
+    qdot: FloatArray, bounds: FloatArray, tol: float, scratch: FloatArray | None = None
+) -> bool:
+    r"""Whether some :math:`\dot q_i` is within ``tol·(1 + |bound|)`` of ``lb_i`` or ``ub_i``.
+
+    Args:
+        qdot: Joint velocity [rad/s], shape ``(nv,)``.
+        bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
+        tol: Relative tolerance [-].
+        scratch: Work array of shape ``(2, 2, nv)``; allocated when None.
+    """
+    work = np.empty((2,) + bounds.shape) if scratch is None else scratch
+    margins, threshold = work[0], work[1]
+    np.subtract(qdot, bounds[0], out=margins[0])  # q̇ − lb
+    np.subtract(bounds[1], qdot, out=margins[1])  # ub − q̇
+    np.abs(bounds, out=threshold)
+    np.add(1.0, threshold, out=threshold)
+    np.multiply(tol, threshold, out=threshold)
+    return bool(np.less_equal(margins, threshold).any())
 
 
 def build_qp(
     task_jacobian: FloatArray,
     xdot: FloatArray,
     damping: float,
-    lower: FloatArray,
-    upper: FloatArray,
+    bounds: FloatArray,
     posture_weight: float = 0.0,
     posture_velocity: FloatArray | None = None,
-) -> qpsolvers.Problem:
-    r"""The differential-IK QP (pure function).
+    out: QpProblem | None = None,
+) -> QpProblem:
+    r"""The differential-IK QP.
 
     .. math::
-        \min_{\dot q}\ \tfrac12\|J_w\dot q - \dot x_w\|^2 + \tfrac12\lambda\|\dot q\|^2
+        \min_{\dot q}\ \tfrac12\|J_w\dot q - \dot x_w\|^2 + \tfrac12\mu\|\dot q\|^2
         + \tfrac12 w_p\|\dot q - \dot q_p\|^2 \quad\text{s.t.}\quad lb \le \dot q \le ub
 
-    i.e. ``P = J_wᵀJ_w + (λ + w_p)I``, ``q = −(J_wᵀẋ_w + w_p q̇_p)``.
+    i.e. ``P = J_wᵀJ_w + (μ + w_p)I``, ``q = −(J_wᵀẋ_w + w_p q̇_p)``; ``±inf`` bounds are
+    passed as ``±BIG``. The general-constraint rows of ``out`` (e.g. the singularity barrier)
+    are left untouched.
 
     Args:
         task_jacobian: ``J_w``, shape ``(n, nv)``.
         xdot: ``ẋ_w``, shape ``(n,)``.
-        damping: ``λ > 0`` [task units² per (rad/s)²].
-        lower: ``lb`` [rad/s], shape ``(nv,)``; ±inf are passed as ±:data:`BIG`.
-        upper: ``ub`` [rad/s], shape ``(nv,)``.
+        damping: ``μ = λ² > 0`` [task units² per (rad/s)²].
+        bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
         posture_weight: ``w_p ≥ 0``.
         posture_velocity: ``q̇_p = g_p(θ_nominal − θ)`` [rad/s], shape ``(nv,)``.
+        out: Problem whose ``P``, ``q``, ``lb``, ``ub`` are overwritten; a new box-only
+            problem when None.
     """
     nv = task_jacobian.shape[1]
-    hessian = task_jacobian.T @ task_jacobian
-    hessian[np.diag_indices(nv)] += damping + posture_weight
-    linear = -(task_jacobian.T @ xdot)
+    problem = QpProblem.allocate(nv) if out is None else out
+    hessian, linear = problem.P, problem.q
+    np.matmul(task_jacobian.T, task_jacobian, out=hessian)
+    diagonal = hessian.reshape(-1)[:: nv + 1]  # a view on the diagonal
+    np.add(diagonal, damping + posture_weight, out=diagonal)
+    np.matmul(task_jacobian.T, xdot, out=linear)
+    np.negative(linear, out=linear)
     if posture_weight > 0.0 and posture_velocity is not None:
         linear -= posture_weight * posture_velocity
-    return qpsolvers.Problem(
-        hessian, linear, lb=np.clip(lower, -BIG, BIG), ub=np.clip(upper, -BIG, BIG)
-    )
-
-
-class BoxBuffers:
-    r"""Allocation-free evaluation of :func:`velocity_box`'s ``lb``/``ub`` every step.
-
-    The step-invariant parts (velocity limits, ``g/dt``, ``a_max·dt``) are fixed here once
-    per run; :meth:`update` writes
-
-    .. math::
-        lb = \max(-\dot q_{max},\ (g/dt)(\theta_{min}-\theta),\ \dot q_{prev}-a_{max}dt),\quad
-        ub = \min(\dot q_{max},\ (g/dt)(\theta_{max}-\theta),\ \dot q_{prev}+a_{max}dt)
-
-    into one preallocated ``(2, nv)`` array with the same floating-point operations as
-    :func:`velocity_box`, so both give bit-identical bounds. :meth:`margins` gives the
-    signed distances to both bounds in one pass.
-
-    Args:
-        position_limits: ``(θ_min, θ_max)``, shapes ``(nv,)`` (±inf allowed).
-        velocity_limits: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
-        dt: Control period [s].
-        limit_gain: ``g ∈ (0, 1]``.
-        acceleration_limit: ``a_max`` [rad/s²], shape ``(nv,)``, or None.
-
-    Attributes:
-        bounds: ``[lb, ub]`` [rad/s] of the last :meth:`update`, shape ``(2, nv)``
-            (overwritten by every update).
-        lower: View ``bounds[0]``.
-        upper: View ``bounds[1]``.
-    """
-
-    def __init__(
-        self,
-        position_limits: tuple[FloatArray, FloatArray],
-        velocity_limits: FloatArray,
-        dt: float,
-        limit_gain: float,
-        acceleration_limit: FloatArray | None,
-    ) -> None:
-        nv = velocity_limits.shape[0]
-        self._theta_limits = np.array(position_limits, dtype=float).reshape(2, nv)
-        speeds = np.array(velocity_limits, dtype=float)
-        self._vel_lower = -speeds
-        self._vel_upper = speeds
-        self._gain = limit_gain / dt  # [1/s]
-        self._acc_step = None if acceleration_limit is None else acceleration_limit * dt
-        self.bounds = np.empty((2, nv))
-        self.lower = self.bounds[0]
-        self.upper = self.bounds[1]
-        self._scratch = np.empty((2, nv))
-        self._threshold = np.empty((2, nv))
-        self._mask = np.empty((2, nv), dtype=bool)
-        self._signs = np.array([[1.0], [-1.0]])
-
-    def update(self, theta: FloatArray, qdot_prev: FloatArray) -> bool:
-        """Write ``lb``, ``ub`` for joint coordinates ``theta`` (nv,); True if the box is empty."""
-        lower, upper, scratch = self.lower, self.upper, self._scratch
-        np.subtract(self._theta_limits, theta, out=scratch)
-        np.multiply(self._gain, scratch, out=scratch)  # position boxes, (2, nv)
-        np.maximum(self._vel_lower, scratch[0], out=lower)
-        np.minimum(self._vel_upper, scratch[1], out=upper)
-        if self._acc_step is not None:
-            np.subtract(qdot_prev, self._acc_step, out=scratch[0])
-            np.maximum(lower, scratch[0], out=lower)
-            np.add(qdot_prev, self._acc_step, out=scratch[1])
-            np.minimum(upper, scratch[1], out=upper)
-        return bool(np.greater(lower, upper, out=self._mask[0]).any())
-
-    def margins(self, qdot: FloatArray) -> FloatArray:
-        """``[q̇ − lb, ub − q̇]`` [rad/s], shape ``(2, nv)`` (overwritten by the next call).
-
-        Every entry is ``≥ 0`` exactly when ``lb ≤ q̇ ≤ ub`` (IEEE subtraction keeps the sign);
-        a NaN in ``q̇`` gives NaN margins.
-        """
-        margins = self._scratch
-        np.subtract(qdot, self.bounds, out=margins)
-        np.multiply(self._signs, margins, out=margins)
-        return margins
-
-    def any_active(self, margins: FloatArray, tol: float) -> bool:
-        """Whether some margin is ``≤ tol·(1 + |bound|)`` (a bound active within ``tol``)."""
-        threshold = self._threshold
-        np.abs(self.bounds, out=threshold)
-        np.add(1.0, threshold, out=threshold)
-        np.multiply(tol, threshold, out=threshold)
-        return bool(np.less_equal(margins, threshold, out=self._mask).any())
+    np.minimum(np.maximum(bounds[0], -BIG, out=problem.lb), BIG, out=problem.lb)
+    np.minimum(np.maximum(bounds[1], -BIG, out=problem.ub), BIG, out=problem.ub)
+    return problem

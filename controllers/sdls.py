@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from otmm_qp.backends.backend import Backend, BackendOutput
+from otmm_qp.backends.backend import RCOND, Backend, BackendOutput, rank_cutoff
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
@@ -29,7 +29,8 @@ class SelectiveDampedLeastSquaresBackend(Backend):
         \Delta q = \mathrm{Clamp}\Big(\sum_i \mathrm{Clamp}(\sigma_i^{-1}\alpha_i v_i,\ \gamma_i),\
         \gamma_{max}\Big),\qquad \dot q = \Delta q/dt
 
-    (single end-effector form; singular values below ``rcond·σ_max`` are skipped).
+    (single end-effector form; singular values below ``rcond·σ_max`` are skipped). Status
+    ``saturated`` when ``q̇`` exceeds the robot's joint speed limits.
 
     Args:
         gamma_max: Largest joint change per step γ_max > 0 [rad] (Buss & Kim: π/4).
@@ -38,7 +39,7 @@ class SelectiveDampedLeastSquaresBackend(Backend):
 
     name = "sdls"
 
-    def __init__(self, gamma_max: float = float(np.pi / 4), rcond: float = 1e-10) -> None:
+    def __init__(self, gamma_max: float = float(np.pi / 4), rcond: float = RCOND) -> None:
         if not (np.isfinite(gamma_max) and gamma_max > 0.0):
             raise ParameterError("gamma_max", f"must be a finite number > 0 [rad], got {gamma_max}")
         if not 0.0 <= rcond < 1.0:
@@ -54,13 +55,13 @@ class SelectiveDampedLeastSquaresBackend(Backend):
         column_norms = np.linalg.norm(state.task_jacobian, axis=0)  # ρ_j, (nv,)
         displacement = xdot * self.dt  # e, (n,)
         delta = np.zeros(Vt.shape[1])
-        cutoff = self.rcond * (float(sigma[0]) if sigma.size else 0.0)
+        cutoff = rank_cutoff(sigma, self.rcond)
         for i in range(sigma.size):
-            if sigma[i] <= max(cutoff, np.finfo(float).tiny):
+            if sigma[i] <= cutoff:
                 continue
             v_i = Vt[i]
             alpha_i = float(U[:, i] @ displacement)
             m_i = float(np.abs(v_i) @ column_norms) / sigma[i]
             gamma_i = min(1.0, 1.0 / m_i) * self.gamma_max if m_i > 0 else self.gamma_max
             delta += clamp_max_abs((alpha_i / sigma[i]) * v_i, gamma_i)
-        return BackendOutput(clamp_max_abs(delta, self.gamma_max) / self.dt)
+        return self.unconstrained_output(clamp_max_abs(delta, self.gamma_max) / self.dt)

@@ -162,11 +162,17 @@ class InfeasibleProblem(OtmmError):
     Attributes:
         step: Index of the control step.
         detail: Solver message or which bound conflicts.
+        problem: The QP of the step (the evidence), or None.
+        solution: The solver's answer (None when the solver was not called).
     """
 
-    def __init__(self, step: int, detail: str) -> None:
+    def __init__(
+        self, step: int, detail: str, problem: object = None, solution: object = None
+    ) -> None:
         self.step = step
         self.detail = detail
+        self.problem = problem
+        self.solution = solution
         super().__init__(f"infeasible QP at step {step}: {detail}")
 
 

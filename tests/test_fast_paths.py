@@ -3,11 +3,12 @@
 Fast paths checked against their references:
 
 * QP fast path (unconstrained SVD solution when inside the box) vs ``fast_path=False``;
-* direct solver paths (``direct_daqp``, ``direct_proxsuite``, ``direct_osqp``: persistent,
-  updated in place, warm started) vs the qpsolvers ``quadprog`` path on the same QP;
+* persistent solver sessions (``daqp``, ``proxsuite``, ``osqp``: set up once, updated in
+  place, warm started) vs the stateless qpsolvers ``quadprog`` path on the same QP;
+* :func:`build_qp` and :func:`velocity_bounds` writing into reused ``out=`` arrays vs the same
+  functions allocating (and vs the step's exposed pure problem solved from scratch);
 * unmasked pseudoinverse (full rank) vs an explicitly masked one;
 * vectorised OTMM vs a per-index loop written here from paper eq. (8);
-* the allocation-free velocity box vs :func:`velocity_box`.
 
 Tolerances: 1e-9 on q̇ [rad/s] for the exact paths (active-set solvers daqp and quadprog
 are exact up to rounding). The iterative solvers run at ``eps_abs = 1e-10`` (proxsuite: on
@@ -30,15 +31,23 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.pinv import PseudoInverseBackend
 from otmm_qp_controllers.qp import QpBackend
-from otmm_qp_controllers.qp_problem import BoxBuffers, velocity_box
+from otmm_qp_controllers.qp_problem import (
+    BIG,
+    JointLimits,
+    QpProblem,
+    build_qp,
+    velocity_bounds,
+    velocity_box,
+)
+from otmm_qp_controllers.qp_solvers import SESSIONS, solve_with_qpsolvers
 
 DT = 0.01  # [s]
 PANDA = PinocchioArm(name="panda", task="pose")
 UR5 = PinocchioArm(name="ur5", task="pose")
 PLANAR = PlanarArm([1.0, 0.8, 0.6], limits=[[-2.5, 2.5]] * 3, velocity_limits=[2.0] * 3)
 ROBOTS = {"panda": PANDA, "ur5": UR5, "planar": PLANAR}
-#: Solver → tolerance on q̇ [rad/s] against the exact reference (see module docstring).
-DIRECT = {"direct_daqp": 1e-9, "direct_proxsuite": 1e-6, "direct_osqp": 1e-6}
+#: Session → tolerance on q̇ [rad/s] against the exact reference (see module docstring).
+SESSION_TOL = {"daqp": 1e-9, "proxsuite": 1e-6, "osqp": 1e-6}
 
 
 def random_theta(robot: Robot, rng: np.random.Generator) -> FloatArray:
@@ -103,56 +112,82 @@ def test_qp_fast_path_equals_qp(name: str, acceleration: float | None) -> None:
 
 
 @pytest.mark.parametrize("name", sorted(ROBOTS))
-@pytest.mark.parametrize("solver", sorted(DIRECT))
-def test_direct_solver_equals_qpsolvers(name: str, solver: str) -> None:
+@pytest.mark.parametrize("solver", sorted(SESSIONS))
+def test_session_equals_qpsolvers(name: str, solver: str) -> None:
+    """Persistent, warm-started sessions give the answer of a from-scratch quadprog solve."""
     robot = ROBOTS[name]
-    direct = QpBackend(solver=solver, fast_path=False, infeasible_policy="dls")
+    persistent = QpBackend(solver=solver, fast_path=False, infeasible_policy="dls")
     reference = QpBackend(solver="quadprog", fast_path=False, infeasible_policy="dls")
-    direct.bind(robot, DT)
+    persistent.bind(robot, DT)
     reference.bind(robot, DT)
     prev = np.zeros(robot.nv)
     bounded = 0
     for state, xdot in cases(robot, 30, seed=3):  # one run: warm starts carried across
-        a, b = direct.solve(state, xdot, prev), reference.solve(state, xdot, prev)
-        np.testing.assert_allclose(a.qdot, b.qdot, rtol=0.0, atol=DIRECT[solver])
+        a, b = persistent.solve(state, xdot, prev), reference.solve(state, xdot, prev)
+        np.testing.assert_allclose(a.qdot, b.qdot, rtol=0.0, atol=SESSION_TOL[solver])
+        assert a.status == b.status
         bounded += b.status == "bounded"
     assert bounded > 0
 
 
 @pytest.mark.parametrize("name", sorted(ROBOTS))
-def test_direct_qp_data_equals_build_qp(name: str) -> None:
-    """The in-place P, q, lb, ub of the direct paths are the ones build_qp returns."""
+@pytest.mark.parametrize("posture", [0.0, 0.1])
+def test_build_qp_in_place_equals_fresh(name: str, posture: float) -> None:
+    """build_qp writing into reused arrays equals build_qp allocating, bit for bit."""
     robot = ROBOTS[name]
-    backend = QpBackend(solver="direct_daqp", fast_path=False, posture_weight=0.1)
-    backend.bind(robot, DT)
+    rng = np.random.default_rng(4)
+    reused = QpProblem.allocate(robot.nv)
     for state, xdot in cases(robot, 10, seed=4):
-        backend.solve(state, xdot, np.zeros(robot.nv))
-        problem = backend.problem
-        assert problem is not None
-        np.testing.assert_allclose(backend._hessian, problem.P, rtol=1e-14, atol=1e-14)
-        np.testing.assert_allclose(backend._linear, problem.q, rtol=1e-14, atol=1e-14)
-        np.testing.assert_array_equal(backend._qp_lower, problem.lb)
-        np.testing.assert_array_equal(backend._qp_upper, problem.ub)
+        bounds = np.sort(rng.standard_normal((2, robot.nv)), axis=0)
+        bounds[1, 0] = np.inf  # ±inf are passed as ±BIG
+        velocity = rng.standard_normal(robot.nv)
+        fresh = build_qp(state.task_jacobian, xdot, 1e-3, bounds, posture, velocity)
+        build_qp(state.task_jacobian, xdot, 1e-3, bounds, posture, velocity, out=reused)
+        for got, expected in zip(reused, fresh, strict=True):
+            np.testing.assert_array_equal(got, expected)
+        assert fresh.ub[0] == BIG
 
 
 @pytest.mark.parametrize("name", sorted(ROBOTS))
-def test_box_buffers_bit_identical(name: str) -> None:
+def test_problem_solved_from_scratch_equals_step(name: str) -> None:
+    """The pure problem a step exposes, solved by quadprog, gives that step's q̇."""
+    robot = ROBOTS[name]
+    backend = QpBackend(solver="daqp", fast_path=False, posture_weight=0.1)
+    backend.bind(robot, DT)
+    for state, xdot in cases(robot, 10, seed=4):
+        out = backend.solve(state, xdot, np.zeros(robot.nv))
+        problem = backend.problem
+        assert problem is not None
+        expected = solve_with_qpsolvers(problem.to_qpsolvers(), "quadprog")
+        assert expected is not None
+        np.testing.assert_allclose(out.qdot, expected, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_velocity_bounds_in_place_bit_identical(name: str) -> None:
+    """velocity_bounds(out=...) on reused arrays equals the allocating velocity_box."""
     robot = ROBOTS[name]
     rng = np.random.default_rng(5)
     acceleration = np.full(robot.nv, 30.0)
+    out, scratch = np.empty((2, robot.nv)), np.empty((2, robot.nv))
     for acc in (None, acceleration):
-        buffers = BoxBuffers(robot.position_limits, robot.velocity_limits, DT, 0.5, acc)
+        limits = JointLimits.make(robot.position_limits, robot.velocity_limits, DT, 0.5, acc)
+        empties = 0
         for _ in range(20):
             theta = random_theta(robot, rng)
             theta[0] = robot.position_limits[1][0] + 0.3 if np.isfinite(theta[0]) else 0.0
             prev = 3.0 * rng.standard_normal(robot.nv)  # often an empty box with acc
-            empty = buffers.update(theta, prev)
+            velocity_bounds(theta, prev, limits, out=out, scratch=scratch)
             box = velocity_box(
                 theta, robot.position_limits, robot.velocity_limits, prev, DT, 0.5, acc
             )
-            np.testing.assert_array_equal(buffers.lower, box.lower)
-            np.testing.assert_array_equal(buffers.upper, box.upper)
-            assert empty == box.empty
+            np.testing.assert_array_equal(out[0], box.lower)
+            np.testing.assert_array_equal(out[1], box.upper)
+            empties += box.empty
+            # the intersection is the componentwise max/min of the three boxes
+            lower = np.maximum.reduce([box.velocity[0], box.position[0], box.acceleration[0]])
+            np.testing.assert_array_equal(box.lower, lower)
+        assert acc is None or empties > 0
 
 
 def masked_pinv(state: KinematicState, xdot: FloatArray, rcond: float) -> FloatArray:

@@ -16,7 +16,8 @@ from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.damping import damped_least_squares
 from otmm_qp_controllers.qp import QpBackend, available_solvers
-from otmm_qp_controllers.qp_problem import solve_with_qpsolvers
+from otmm_qp_controllers.qp_problem import QpProblem
+from otmm_qp_controllers.qp_solvers import Solution, solve_with_qpsolvers
 
 DT = 0.01
 PANDA = PinocchioArm(name="panda", task="pose")
@@ -72,7 +73,8 @@ def test_fast_path_equals_qp(case: tuple) -> None:
     np.testing.assert_allclose(a.qdot, b.qdot, atol=1e-9)
     assert slow.used_qp
     # the plain qpsolvers path on the exposed problem agrees too
-    reference = solve_with_qpsolvers(fast.problem, "quadprog")
+    assert fast.problem is not None
+    reference = solve_with_qpsolvers(fast.problem.to_qpsolvers(), "quadprog")
     assert reference is not None
     np.testing.assert_allclose(a.qdot, reference, atol=1e-9)
 
@@ -122,6 +124,10 @@ def test_infeasible_start_raises() -> None:
     message = str(info.value)
     assert message.startswith("infeasible QP at step 0: joint 'joint1': velocity box [-2, 2]")
     assert "\n" not in message
+    evidence = info.value.problem  # the step's QP travels with the error
+    assert isinstance(evidence, QpProblem)
+    assert evidence.lb[0] == -2.0 and evidence.ub[0] == pytest.approx(-0.5 * 0.4 / DT)
+    assert info.value.solution is None  # the box was empty: the solver was not called
 
 
 @pytest.mark.parametrize("policy", ["hold", "dls"])
@@ -131,7 +137,7 @@ def test_infeasible_start_policies(policy: str) -> None:
     backend.bind(arm, DT)
     state = KinematicState.compute(arm, theta)
     out = backend.solve(state, np.array([0.1, 0.1]), np.zeros(3))
-    assert out.status == "infeasible"
+    assert out.status == "relaxed"  # the position bound was given up
     assert out.qdot[0] == pytest.approx(-2.0)  # back toward the limit at full speed
     assert np.all(np.abs(out.qdot) <= 2.0)
 
@@ -158,3 +164,54 @@ def test_posture_cost_unconstrained_matches_qp() -> None:
     a, b = backend.solve(state, xdot, np.zeros(7)), slow.solve(state, xdot, np.zeros(7))
     assert not backend.used_qp
     np.testing.assert_allclose(a.qdot, b.qdot, atol=1e-9)
+
+
+def test_damping_reported_as_factor() -> None:
+    """BackendOutput.damping is λ = √μ [task units], the quantity every DLS backend reports."""
+    backend = QpBackend(damping=4e-4, solver="daqp")
+    backend.bind(PANDA, DT)
+    theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+    state = KinematicState.compute(PANDA, PANDA.configuration(theta))
+    out = backend.solve(state, np.full(6, 0.01), np.zeros(7))
+    assert out.damping == pytest.approx(0.02)
+    np.testing.assert_allclose(out.qdot, damped_least_squares(state, np.full(6, 0.01), 4e-4))
+
+
+class _FailingSession:
+    """A session whose solver never finds a solution (a solver failure on a feasible box)."""
+
+    name = "failing"
+
+    def load(self, problem: QpProblem) -> None:
+        self.problem = problem
+
+    def reset(self) -> None:
+        pass
+
+    def solve(self) -> Solution:
+        return Solution(None, False, "exitflag -1")
+
+
+def test_solver_failure_carries_problem_and_answer() -> None:
+    backend = QpBackend(solver="daqp", fast_path=False)
+    backend.bind(PANDA, DT)
+    backend.session = _FailingSession()  # type: ignore[assignment]
+    theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+    state = KinematicState.compute(PANDA, PANDA.configuration(theta))
+    with pytest.raises(InfeasibleProblem) as info:
+        backend.solve(state, np.full(6, 0.01), np.zeros(7))
+    assert str(info.value) == (
+        "infeasible QP at step 0: solver 'daqp' found no solution (exitflag -1)"
+    )
+    assert info.value.solution == Solution(None, False, "exitflag -1")
+    problem = info.value.problem
+    assert isinstance(problem, QpProblem)
+    np.testing.assert_allclose(
+        problem.P, state.task_jacobian.T @ state.task_jacobian + 1e-3 * np.eye(7)
+    )
+    holding = QpBackend(solver="daqp", fast_path=False, infeasible_policy="hold")
+    holding.bind(PANDA, DT)
+    holding.session = _FailingSession()  # type: ignore[assignment]
+    out = holding.solve(state, np.full(6, 0.01), np.zeros(7))
+    assert out.status == "infeasible"  # the box was not empty: nothing was relaxed
+    np.testing.assert_array_equal(out.qdot, np.zeros(7))

@@ -8,7 +8,9 @@ import pytest
 from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.state import KinematicState
+from otmm_qp_controllers.qp_problem import QpProblem
 from otmm_qp_controllers.qp_scaled import SCALED_SOLVERS, ScaledQpBackend
+from otmm_qp_controllers.qp_solvers import solve_with_qpsolvers
 
 DT = 0.01
 UR5 = PinocchioArm(name="ur5", task="pose")
@@ -69,12 +71,15 @@ def test_infeasible_policies() -> None:
     state = KinematicState.compute(arm, arm.configuration(theta))
     raising = ScaledQpBackend()
     raising.bind(arm, DT)
-    with pytest.raises(InfeasibleProblem):
+    with pytest.raises(InfeasibleProblem) as info:
         raising.solve(state, np.zeros(6), np.zeros(6))
+    evidence = info.value.problem  # the step's QP travels with the error
+    assert isinstance(evidence, QpProblem) and evidence.lb[0] > evidence.ub[0]
+    assert info.value.solution is None  # the box was empty: no solver was called
     holding = ScaledQpBackend(infeasible_policy="hold")
     holding.bind(arm, DT)
     out = holding.solve(state, np.zeros(6), np.zeros(6))
-    assert out.status == "infeasible" and out.scale == 0.0
+    assert out.status == "relaxed" and out.scale == 0.0  # the position bound was given up
     assert out.qdot[0] == pytest.approx(-arm.velocity_limits[0])
 
 
@@ -82,3 +87,14 @@ def test_proxqp_rejected_with_supported_list() -> None:
     with pytest.raises(SolverNotFound) as info:
         ScaledQpBackend(solver="proxqp")
     assert str(info.value).startswith("unknown QP solver 'proxqp'; installed: clarabel, daqp")
+
+
+def test_problem_solved_by_qpsolvers_matches() -> None:
+    """The exposed pure problem, solved from scratch by qpsolvers, gives the step's answer."""
+    xdot = np.array([2.0, 0.0, 0.0, 0.0, 0.0, 3.0])
+    out, _, backend = _solve(REGULAR, xdot, "daqp")
+    assert backend.problem is not None
+    reference = solve_with_qpsolvers(backend.problem.to_qpsolvers(), "quadprog")
+    assert reference is not None
+    np.testing.assert_allclose(out.qdot, reference[:-1], atol=1e-6)
+    assert out.scale == pytest.approx(reference[-1], abs=1e-6)

@@ -9,33 +9,49 @@ import numpy as np
 
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status, exceeds_speed_limits
 
-#: Step solved with no bound active.
-STATUS_OK: Final = "ok"
-#: Step solved with at least one joint bound active.
-STATUS_BOUNDED: Final = "bounded"
-#: No feasible joint velocity; the infeasibility policy decided what was returned.
-STATUS_INFEASIBLE: Final = "infeasible"
-#: Direction-preserving solve could only scale the command below its threshold.
-STATUS_STUCK: Final = "stuck"
-#: The backend returned non-finite values; the step was replaced by zero joint speed.
-STATUS_NONFINITE: Final = "nonfinite"
-_TINY: Final = float(np.finfo(float).tiny)
+# Aliases of the Status members, kept importable for code written before the enum.
+STATUS_OK: Final = Status.OK
+STATUS_BOUNDED: Final = Status.BOUNDED
+STATUS_INFEASIBLE: Final = Status.INFEASIBLE
+STATUS_STUCK: Final = Status.STUCK
+STATUS_NONFINITE: Final = Status.NONFINITE
+STATUS_RELAXED: Final = Status.RELAXED
+STATUS_SATURATED: Final = Status.SATURATED
+#: The statuses counted by the metrics (``status_<name>`` columns) before the enum existed;
+#: :class:`~otmm_qp.status.Status` lists them all.
 STATUSES: Final = (STATUS_OK, STATUS_BOUNDED, STATUS_INFEASIBLE, STATUS_STUCK, STATUS_NONFINITE)
+
+#: Singular values below ``RCOND·σ_max`` count as zero: the one rank cutoff of every backend.
+RCOND: Final = 1e-10
+_TINY: Final = float(np.finfo(float).tiny)
+
+
+def rank_cutoff(sigma: FloatArray, rcond: float = RCOND) -> float:
+    r"""Threshold below which a singular value is dropped: :math:`\max(r\,\sigma_{max}, tiny)`.
+
+    Args:
+        sigma: Singular values, descending, shape ``(k,)``.
+        rcond: Relative threshold ``r`` in ``[0, 1)``.
+    """
+    return max(rcond * float(sigma[0]), _TINY) if sigma.size else _TINY
 
 
 class BackendOutput(NamedTuple):
-    """Result of one backend solve.
+    r"""Result of one backend solve.
 
     Attributes:
         qdot: Joint velocity [rad/s], shape ``(nv,)``.
-        status: One of :data:`STATUSES`.
-        damping: Damping λ used [task units], NaN when the backend has none.
+        status: A :class:`~otmm_qp.status.Status`.
+        damping: Damping factor λ [task units] of the step — the λ of
+            :math:`J^\top(JJ^\top + \lambda^2 I)^{-1}`, i.e. the QP weight of
+            :math:`\|\dot q\|^2` is λ² — NaN when the backend has none.
         scale: Fraction α ∈ [0, 1] of the command realised (1 unless direction-preserving).
     """
 
     qdot: FloatArray
-    status: str = STATUS_OK
+    status: str = Status.OK
     damping: float = float("nan")
     scale: float = 1.0
 
@@ -59,6 +75,8 @@ class Backend(abc.ABC):
         """Attach the robot and the control period ``dt`` [s]; called once per run."""
         self.robot = robot
         self.dt = dt
+        limits = np.asarray(robot.velocity_limits, dtype=float)
+        self._speed_limits: FloatArray | None = limits if np.isfinite(limits).any() else None
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget warm starts and per-run state (called at the start of each run)."""
@@ -75,11 +93,21 @@ class Backend(abc.ABC):
             qdot_prev: Joint velocity of the previous step [rad/s], shape ``(nv,)``.
         """
 
+    def unconstrained_output(self, qdot: FloatArray, damping: float = np.nan) -> BackendOutput:
+        """``ok``, or ``saturated`` when ``qdot`` exceeds the bound robot's speed limits.
+
+        For backends that do not enforce joint limits (see :mod:`otmm_qp.status`).
+        """
+        limits = getattr(self, "_speed_limits", None)  # None: unbound, or no finite limit
+        if limits is not None and exceeds_speed_limits(qdot, limits):
+            return BackendOutput(qdot, Status.SATURATED, damping)
+        return BackendOutput(qdot, Status.OK, damping)
+
 
 def truncated_pseudoinverse_apply(
-    state: KinematicState, xdot: FloatArray, rcond: float = 1e-10
+    state: KinematicState, xdot: FloatArray, rcond: float = RCOND
 ) -> FloatArray:
-    r"""``J_w^+ ẋ`` from the shared SVD, dropping singular values below ``rcond·σ_max``.
+    r"""``J_w^+ ẋ`` from the shared SVD, dropping singular values below :func:`rank_cutoff`.
 
     .. math:: \dot q = \sum_{i:\,\sigma_i > \epsilon} \frac{u_i^\top \dot x}{\sigma_i} v_i
 
@@ -88,7 +116,7 @@ def truncated_pseudoinverse_apply(
     sigma = state.sigma
     if not sigma.size:
         return np.zeros(state.Vt.shape[1])
-    cutoff = max(rcond * float(sigma[0]), _TINY)
+    cutoff = rank_cutoff(sigma, rcond)
     if sigma[-1] > cutoff:  # full rank: no masking needed (the common case)
         result: FloatArray = state.Vt.T @ ((xdot @ state.U) / sigma)
         return result

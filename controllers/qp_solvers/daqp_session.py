@@ -1,0 +1,54 @@
+r"""DAQP (dual active-set) session: warm started from the previous active set."""
+
+from __future__ import annotations
+
+from ctypes import c_int
+
+import numpy as np
+
+from otmm_qp_controllers.qp_solvers.problem import QpProblem
+from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+
+#: DAQP sense flags of an equality row: ACTIVE (1) + IMMUTABLE (4).
+_EQUALITY = 5
+
+
+class DaqpSession(QpSession):
+    """``daqp.Model``: box rows first, then the general rows (DAQP's own layout)."""
+
+    name = "daqp"
+
+    def setup(self, problem: QpProblem) -> None:
+        """Allocate a ``daqp.Model`` and the stacked row bounds."""
+        import daqp
+
+        n, m = problem.q.shape[0], problem.C.shape[0]
+        self._upper = np.empty(n + m)
+        self._lower = np.empty(n + m)
+        sense = np.zeros(n + m, dtype=c_int)
+        sense[n:][problem.l == problem.u] = _EQUALITY
+        self._stack(problem)
+        self._model = daqp.Model()
+        self._model.setup(problem.P, problem.q, problem.C, self._upper, self._lower, sense)
+
+    def _stack(self, problem: QpProblem) -> None:
+        n = problem.q.shape[0]
+        self._upper[:n], self._upper[n:] = problem.ub, problem.u
+        self._lower[:n], self._lower[n:] = problem.lb, problem.l
+
+    def update(self, problem: QpProblem) -> None:
+        """New ``P``, ``q``, bounds (and rows); the active set of the last solve is kept."""
+        if not problem.C.shape[0]:  # box only: the bounds are the problem's own arrays
+            self._model.update(H=problem.P, f=problem.q, bupper=problem.ub, blower=problem.lb)
+            return
+        self._stack(problem)
+        self._model.update(
+            H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
+        )
+
+    def solve(self) -> Solution:
+        """Solve; found when DAQP's exit flag is positive."""
+        x, _, exitflag, _ = self._model.solve()
+        if exitflag <= 0:
+            return Solution(None, False, f"exitflag {exitflag}")
+        return Solution(np.array(x, dtype=float), True, f"exitflag {exitflag}")

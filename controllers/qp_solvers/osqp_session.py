@@ -1,0 +1,74 @@
+r"""OSQP (ADMM + polishing) session: warm started from the previous primal-dual solution."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp_controllers.qp_solvers.problem import QpProblem
+from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+
+#: OSQP settings giving ~1e-10 accuracy (the error on x is about eps / λ_min(P)).
+SETTINGS = {
+    "verbose": False, "polishing": True, "eps_abs": 1e-10, "eps_rel": 1e-10, "max_iter": 20000,
+}  # fmt: skip
+#: OSQP ``status_val`` of "solved" and "solved inaccurate".
+_SOLVED = (1, 2)
+
+
+class OsqpSession(QpSession):
+    r"""``osqp.OSQP`` with constraint matrix :math:`A = [I; C]`, bounds ``[lb; l]``, ``[ub; u]``.
+
+    The sparsity patterns are dense and fixed at :meth:`setup` (upper triangle of ``P``,
+    every entry of ``C``), so :meth:`update` only rewrites values.
+    """
+
+    name = "osqp"
+
+    def setup(self, problem: QpProblem) -> None:
+        """Build the fixed patterns and the solver, then load ``problem``'s values."""
+        import osqp
+        import scipy.sparse as sparse
+
+        n, m = problem.q.shape[0], problem.C.shape[0]
+        rows, cols = np.triu_indices(n)
+        order = np.lexsort((rows, cols))  # CSC order: by column, then row
+        self._triu = (rows[order], cols[order])
+        pattern = sparse.csc_matrix((np.ones(rows.size), self._triu), shape=(n, n))
+        # A = [I; C] column by column: the identity entry, then every row of C.
+        a_rows = np.concatenate([[j, *range(n, n + m)] for j in range(n)])
+        a_cols = np.repeat(np.arange(n), m + 1)
+        self._a_values = np.ones((n, m + 1))  # CSC values: column j is [1, C[:, j]]
+        a_pattern = sparse.csc_matrix((np.ones(a_rows.size), (a_rows, a_cols)), shape=(n + m, n))
+        self._lower, self._upper = np.empty(n + m), np.empty(n + m)
+        self._solver = osqp.OSQP()
+        self._solver.setup(
+            pattern, np.zeros(n), a_pattern, -np.ones(n + m), np.ones(n + m), **SETTINGS
+        )
+        self.update(problem)
+
+    def _a_data(self, problem: QpProblem) -> FloatArray | None:
+        if not problem.C.shape[0]:
+            return None  # the identity never changes
+        self._a_values[:, 1:] = problem.C.T
+        return self._a_values.reshape(-1)
+
+    def update(self, problem: QpProblem) -> None:
+        """New values on the fixed patterns."""
+        n = problem.q.shape[0]
+        self._lower[:n], self._lower[n:] = problem.lb, problem.l
+        self._upper[:n], self._upper[n:] = problem.ub, problem.u
+        rows, cols = self._triu
+        values = self._a_data(problem)
+        extra = {} if values is None else {"Ax": values}
+        self._solver.update(
+            Px=problem.P[rows, cols], q=problem.q, l=self._lower, u=self._upper, **extra
+        )
+
+    def solve(self) -> Solution:
+        """Solve; found when OSQP reports solved (or solved inaccurate)."""
+        result = self._solver.solve(raise_error=False)
+        status = int(result.info.status_val)
+        if status not in _SOLVED:
+            return Solution(None, False, str(result.info.status))
+        return Solution(np.array(result.x), True, str(result.info.status))

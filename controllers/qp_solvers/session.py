@@ -1,0 +1,63 @@
+r"""The persistent solver-session protocol: ``setup`` once, ``update`` each step, ``solve``."""
+
+from __future__ import annotations
+
+import abc
+from typing import NamedTuple
+
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp_controllers.qp_solvers.problem import QpProblem
+
+
+class Solution(NamedTuple):
+    """What a session returns.
+
+    Attributes:
+        x: The primal solution, shape ``(n,)`` (a fresh array), or None when not found.
+        found: Whether the solver reports a solution.
+        detail: The solver's own status, e.g. ``exitflag 1`` or ``solved``.
+    """
+
+    x: FloatArray | None
+    found: bool
+    detail: str
+
+
+class QpSession(abc.ABC):
+    """One solver instance kept across the steps of a run and warm started.
+
+    :meth:`setup` allocates for a problem's :attr:`~QpProblem.structure` (sizes, equality
+    rows); :meth:`update` writes new data of the same structure in place; :meth:`solve`
+    solves the current data. :meth:`load` picks between the two.
+    """
+
+    #: Registered name.
+    name: str = "session"
+
+    def __init__(self) -> None:
+        self._structure: tuple[int, int, bytes] | None = None
+
+    @abc.abstractmethod
+    def setup(self, problem: QpProblem) -> None:
+        """Allocate the solver for ``problem``'s structure and load its data (cold start)."""
+
+    @abc.abstractmethod
+    def update(self, problem: QpProblem) -> None:
+        """Load new data of the structure given to :meth:`setup` (keeps the warm start)."""
+
+    @abc.abstractmethod
+    def solve(self) -> Solution:
+        """Solve the loaded problem."""
+
+    def load(self, problem: QpProblem) -> None:
+        """:meth:`update` if ``problem`` has the last load's structure, else :meth:`setup`."""
+        structure = problem.structure
+        if structure == self._structure:
+            self.update(problem)
+            return
+        self.setup(problem)
+        self._structure = structure
+
+    def reset(self) -> None:
+        """Forget the warm start: the next :meth:`load` sets the solver up again."""
+        self._structure = None

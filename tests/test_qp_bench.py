@@ -1,0 +1,32 @@
+"""benchmarks/bench_qp_session.py runs at a tiny size and prints every row (no timing asserted)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parent.parent / "benchmarks" / "bench_qp_session.py"
+
+
+def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -> None:
+    spec = importlib.util.spec_from_file_location("bench_qp_session", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_qp_session"] = module
+    spec.loader.exec_module(module)
+    assert module.main(["--steps", "4", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    for row in (
+        "qp (default: daqp session, fast path)",
+        "qp (daqp session, QP every step)",
+        "otmm+qp (default)",
+        "otmm+qp (daqp session, QP every step)",
+        "qp+barrier (default)",
+        "qp+barrier (QP every step)",
+    ):
+        assert row in out
+    if importlib.util.find_spec("pink") is not None:
+        assert "pink (daqp)" in out and "skipped" not in out

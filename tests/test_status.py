@@ -1,0 +1,112 @@
+"""Status: one enum, old names as aliases, and `saturated` for every unconstrained backend."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from otmm_qp.backends import backend as backend_module
+from otmm_qp.backends.backend import Backend
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.state import KinematicState
+from otmm_qp.status import Status, exceeds_speed_limits
+from otmm_qp_controllers.dls import DampedLeastSquaresBackend
+from otmm_qp_controllers.dls_adaptive import AdaptiveDampedLeastSquaresBackend
+from otmm_qp_controllers.dls_sigma import SigmaDampedLeastSquaresBackend
+from otmm_qp_controllers.pinv import PseudoInverseBackend
+from otmm_qp_controllers.qp import QpBackend
+from otmm_qp_controllers.sdls import SelectiveDampedLeastSquaresBackend
+
+DT = 0.02  # [s]
+LIMITED = PlanarArm([1.0, 0.8], velocity_limits=[2.0, 2.0])
+UNLIMITED = PlanarArm([1.0, 0.8])
+NEAR_SINGULAR = np.array([0.3, 1e-3])  # σ_min ≈ 4e-4: pinv needs ~10³ rad/s along v_s
+
+UNCONSTRAINED = {
+    "pinv": PseudoInverseBackend,
+    "dls": lambda: DampedLeastSquaresBackend(damping=1e-4),
+    "dls_adaptive": lambda: AdaptiveDampedLeastSquaresBackend(alpha=1e-8, sigma_threshold=0.05),
+    "dls_sigma": lambda: SigmaDampedLeastSquaresBackend(lambda_max=1e-4, epsilon=0.05),
+    "sdls": lambda: SelectiveDampedLeastSquaresBackend(gamma_max=10.0),
+}
+
+
+def test_status_is_a_str_enum_with_the_old_names_as_aliases() -> None:
+    assert Status.OK == "ok" and f"{Status.SATURATED}" == "saturated"
+    assert str(Status.RELAXED) == "relaxed"
+    for name in ("OK", "BOUNDED", "INFEASIBLE", "STUCK", "NONFINITE", "RELAXED", "SATURATED"):
+        assert getattr(backend_module, f"STATUS_{name}") is Status[name]
+    assert set(backend_module.STATUSES) < set(Status)
+
+
+def test_exceeds_speed_limits_boundary() -> None:
+    limits = np.array([2.0, np.inf])
+    assert not exceeds_speed_limits(np.array([2.0, 1e6]), limits)  # at the limit; inf: never
+    assert not exceeds_speed_limits(np.array([-2.0 * (1 + 1e-10), 0.0]), limits)  # tolerance
+    assert exceeds_speed_limits(np.array([-2.0 * (1 + 1e-8), 0.0]), limits)
+    assert not exceeds_speed_limits(np.array([np.nan, 0.0]), limits)  # nonfinite's business
+
+
+@pytest.mark.parametrize("name", sorted(UNCONSTRAINED))
+def test_unconstrained_backend_beyond_speed_limit_is_saturated(name: str) -> None:
+    state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
+    along_weak = 0.5 * state.U[:, -1] + 20.0 * state.U[:, 0]  # [m/s]; sdls clamps v_s
+    small = 1e-3 * state.U[:, 0]
+    backend = UNCONSTRAINED[name]()
+    backend.bind(LIMITED, DT)
+    fast = backend.solve(state, along_weak, np.zeros(2))
+    assert np.abs(fast.qdot).max() > 2.0 and fast.status == Status.SATURATED
+    slow = backend.solve(state, small, np.zeros(2))
+    assert np.abs(slow.qdot).max() <= 2.0 and slow.status == Status.OK
+    unlimited = UNCONSTRAINED[name]()
+    unlimited.bind(UNLIMITED, DT)  # no finite limit: nothing to saturate against
+    assert unlimited.solve(state, along_weak, np.zeros(2)).status == Status.OK
+
+
+def test_pinv_spinning_at_1e3_rad_s_is_not_ok() -> None:
+    state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
+    backend = PseudoInverseBackend()
+    backend.bind(LIMITED, DT)
+    out = backend.solve(state, state.U[:, -1], np.zeros(2))
+    assert np.abs(out.qdot).max() > 1e3 and out.status == "saturated"
+
+
+def test_qp_never_saturates() -> None:
+    """The QP's box holds the speed limits, so its steps are ok or bounded."""
+    state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
+    backend = QpBackend(solver="daqp")
+    backend.bind(LIMITED, DT)
+    out = backend.solve(state, 0.5 * state.U[:, -1] + 20.0 * state.U[:, 0], np.zeros(2))
+    assert out.status == Status.BOUNDED and np.abs(out.qdot).max() <= 2.0
+
+
+def test_unbound_backend_output_is_ok() -> None:
+    class Raw(Backend):
+        def solve(
+            self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
+        ) -> backend_module.BackendOutput:
+            return self.unconstrained_output(np.full(2, 1e3))
+
+    state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
+    assert Raw().solve(state, np.zeros(2), np.zeros(2)).status == Status.OK
+
+
+@pytest.mark.parametrize(
+    ("backend", "expected"),
+    [
+        (DampedLeastSquaresBackend(damping=0.05), 0.05),
+        (SigmaDampedLeastSquaresBackend(lambda_max=0.05, epsilon=0.05), None),
+        (AdaptiveDampedLeastSquaresBackend(alpha=0.003, sigma_threshold=0.05), None),
+    ],
+)
+def test_damping_is_the_factor_lambda(backend: Backend, expected: float | None) -> None:
+    """BackendOutput.damping is λ [task units]: q̇ = Jᵀ(JJᵀ + λ²I)⁻¹ẋ, for every backend."""
+    state = KinematicState.compute(UNLIMITED, np.array([0.3, 0.02]))
+    xdot = np.array([0.1, -0.2])
+    backend.bind(UNLIMITED, DT)
+    out = backend.solve(state, xdot, np.zeros(2))
+    jacobian = state.task_jacobian
+    lam = out.damping
+    assert lam > 0.0 and (expected is None or lam == pytest.approx(expected))
+    reference = jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + lam**2 * np.eye(2), xdot)
+    np.testing.assert_allclose(out.qdot, reference, rtol=1e-9)

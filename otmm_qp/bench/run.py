@@ -58,6 +58,8 @@ def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = F
         # qpsolvers warns on every dense-to-sparse conversion for OSQP (pink's path too):
         # the cost is part of what is measured, the repeated text is not useful.
         warnings.simplefilter("ignore", SparseConversionWarning)
+        # osqp 1.x warns that solve()'s raise_error default will change (qpsolvers calls it).
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
         scenarios = [] if planar_only else [bench_scenario(panda_scenario(steps), True, rounds)]
         scenarios.append(bench_scenario(planar_scenario(steps), False, rounds))
     command = f"otmm-qp bench --out {out} --steps {steps}"

@@ -1,81 +1,87 @@
-"""Time one control step on Panda with a 6-D pose task (pure timing, no assertions).
+"""Time one control step on Panda with a 6-D pose task, limits inactive and active.
 
-Pipelines: KinematicState.compute + OTMM filter + backend, via ``Controller.step``.
-Run: ``python benchmarks/bench_arm_step.py``; prints median / p90 [µs] per pipeline.
+Pipelines (KinematicState.compute + OTMM filter + backend, via ``Controller.step``) are built
+through the registry from their YAML parameters. Pure timing, no assertions.
+Run: ``python benchmarks/bench_arm_step.py [--steps N]``; prints median / p90 [µs] per line.
 """
 
 from __future__ import annotations
 
+import argparse
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
+from otmm_qp import registry
 from otmm_qp.controller import Controller
-from otmm_qp.filters.otmm import OtmmFilter
-from otmm_qp.robots.pinocchio_arm import PinocchioArm
+from otmm_qp.robots.robot import Robot
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.pinv import PseudoInverseBackend
-from otmm_qp_controllers.qp import QpBackend
 
-STEPS = 3000
 DT = 0.01  # [s]
+THETA = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])  # Panda ready pose [rad]
+#: label -> (backend, YAML parameters); each runs behind OTMM (σ_S = 0.05, corank all).
+PIPELINES: dict[str, tuple[str, dict[str, Any]]] = {
+    "otmm+pinv": ("pinv", {}),
+    "otmm+qp (daqp)": ("qp", {"solver": "daqp"}),
+    "otmm+qp (direct_daqp)": ("qp", {"solver": "direct_daqp"}),
+    "otmm+qp (direct_daqp, QP every step)": ("qp", {"solver": "direct_daqp", "fast_path": False}),
+    "otmm+qp (direct_proxsuite)": ("qp", {"solver": "direct_proxsuite"}),
+}
 
 
-def pipelines() -> dict[str, Controller]:
-    return {
-        "otmm+pinv": Controller(
-            "otmm+pinv", [OtmmFilter(0.05, corank="all")], PseudoInverseBackend()
-        ),
-        "otmm+qp(direct_proxsuite)": Controller(
-            "otmm+qp", [OtmmFilter(0.05, corank="all")], QpBackend(solver="direct_proxsuite")
-        ),
-        "otmm+qp(direct_proxsuite, no fast path)": Controller(
-            "otmm+qp-nofast",
-            [OtmmFilter(0.05, corank="all")],
-            QpBackend(solver="direct_proxsuite", fast_path=False),
-        ),
-        "otmm+qp(daqp)": Controller("otmm+qp", [OtmmFilter(0.05, corank="all")], QpBackend()),
-    }
+def controller(label: str, backend: str, params: dict[str, Any]) -> Controller:
+    otmm = registry.create(registry.FILTERS, "otmm", {"sigma_s": 0.05, "corank": "all"}, label)
+    return Controller(label, [otmm], registry.create(registry.BACKENDS, backend, params, label))
 
 
-def run(controller: Controller, robot: PinocchioArm, speed: float) -> np.ndarray:
-    controller.bind(robot, DT)
-    theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
-    q = robot.configuration(theta)
-    qdot = np.zeros(robot.nv)
-    rng = np.random.default_rng(0)
-    xdots = speed * rng.standard_normal((STEPS, 6))
-    timings = np.empty(STEPS)
-    for k in range(STEPS):
+def percentiles(samples: np.ndarray, warm_up: int) -> tuple[float, float]:
+    """Median and p90 [µs] of ``samples`` [s] after the first ``warm_up``."""
+    kept = samples[warm_up:] * 1e6
+    return float(np.median(kept)), float(np.percentile(kept, 90))
+
+
+def time_calls(call: Callable[[int], None], steps: int) -> np.ndarray:
+    samples = np.empty(steps)
+    for k in range(steps):
         start = time.perf_counter()
-        state = KinematicState.compute(robot, q)
-        out = controller.step(state, xdots[k], qdot)
-        timings[k] = time.perf_counter() - start
-        qdot = out.qdot
-        q = robot.integrate(q, 0.0 * qdot, DT)  # stay at one configuration region
-    return timings[200:] * 1e6
+        call(k)
+        samples[k] = time.perf_counter() - start
+    return samples
 
 
-def main() -> None:
-    robot = PinocchioArm(name="panda", task="pose")
-    q = robot.configuration(np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]))
-    for label, fn in [
-        ("KinematicState.compute", lambda: KinematicState.compute(robot, q)),
-        ("robot.kinematics", lambda: robot.kinematics(q)),
-    ]:
-        samples = np.empty(STEPS)
-        for k in range(STEPS):
-            start = time.perf_counter()
-            fn()
-            samples[k] = time.perf_counter() - start
-        samples = samples[200:] * 1e6
-        p90 = np.percentile(samples, 90)
-        print(f"{label:45s} median {np.median(samples):6.1f} µs  p90 {p90:6.1f} µs")
+def time_controller(pipeline: Controller, robot: Robot, speed: float, steps: int) -> np.ndarray:
+    """Step times [s] at one configuration for random commands of RMS ``speed`` [m/s, rad/s]."""
+    pipeline.bind(robot, DT)
+    q = robot.configuration(THETA)
+    qdot = np.zeros(robot.nv)
+    xdots = speed * np.random.default_rng(0).standard_normal((steps, 6))
+    return time_calls(
+        lambda k: pipeline.step(KinematicState.compute(robot, q), xdots[k], qdot), steps
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
+    """Print and return ``label -> (median µs, p90 µs)``."""
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--steps", type=int, default=3000, help="timed steps per line")
+    steps = parser.parse_args(argv).steps
+    warm_up = min(200, steps // 10)
+    robot = registry.create(registry.ROBOTS, "pinocchio", {"name": "panda", "task": "pose"}, "")
+    q = robot.configuration(THETA)
+    lines = {
+        "KinematicState.compute": time_calls(lambda k: KinematicState.compute(robot, q), steps),
+        "robot.kinematics": time_calls(lambda k: robot.kinematics(q), steps),
+    }
     for speed, regime in [(0.05, "limits inactive"), (5.0, "limits active")]:
-        for name, controller in pipelines().items():
-            t = run(controller, robot, speed)
-            label = f"{name} [{regime}]"
-            print(f"{label:45s} median {np.median(t):6.1f} µs  p90 {np.percentile(t, 90):6.1f} µs")
+        for label, (backend, params) in PIPELINES.items():
+            samples = time_controller(controller(label, backend, params), robot, speed, steps)
+            lines[f"{label} [{regime}]"] = samples
+    results = {label: percentiles(samples, warm_up) for label, samples in lines.items()}
+    for label, (median, p90) in results.items():
+        print(f"{label:50s} median {median:7.1f} µs  p90 {p90:7.1f} µs")
+    return results
 
 
 if __name__ == "__main__":

@@ -1,24 +1,29 @@
 """Per-step cost of otmm-qp pipelines against pink, mink and Drake (see :mod:`otmm_qp.bench`).
 
-Run: ``python benchmarks/bench_step.py [--out DIR] [--steps N]`` (same as ``otmm-qp bench``);
-writes ``bench.json`` and ``bench.md`` and prints the Markdown table.
+Run: ``python benchmarks/bench_step.py [--out DIR] [--steps N] [--rounds R] [--planar-only]``
+(``otmm-qp bench`` with the same defaults); writes ``bench.json`` and ``bench.md`` and prints
+the Markdown tables.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 
 from otmm_qp.bench import run_bench
+from otmm_qp.bench.run import ROUNDS
 
 
-def main() -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Parse the arguments and run the benchmark."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/bench"))
-    parser.add_argument("--steps", type=int, default=300)
-    args = parser.parse_args()
-    return run_bench(args.out, args.steps)
+    parser.add_argument("--steps", type=int, default=300, help="replayed states per scenario")
+    parser.add_argument("--rounds", type=int, default=ROUNDS, help="interleaved timing rounds")
+    parser.add_argument("--planar-only", action="store_true", help="skip the Panda scenario")
+    args = parser.parse_args(argv)
+    return run_bench(args.out, args.steps, args.rounds, args.planar_only)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from otmm_qp.backends.backend import STATUS_NONFINITE, Backend, BackendOutput
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -67,7 +68,22 @@ class Controller:
 
         Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
         so NaN/inf never leave a step.
+
+        Raises:
+            DimensionError: ``xdot`` is not of shape ``(n,)`` or ``qdot_prev`` not ``(nv,)``.
         """
+        if not isinstance(xdot, np.ndarray):
+            xdot = np.asarray(xdot, dtype=float)
+        if not isinstance(qdot_prev, np.ndarray):
+            qdot_prev = np.asarray(qdot_prev, dtype=float)
+        shape = state.jacobian.shape
+        if xdot.shape != shape[:1] or qdot_prev.shape != shape[1:]:
+            wrong_xdot = xdot.shape != shape[:1]
+            raise DimensionError(
+                "xdot" if wrong_xdot else "qdot_prev",
+                shape[:1] if wrong_xdot else shape[1:],
+                xdot.shape if wrong_xdot else qdot_prev.shape,
+            )
         unit = state.task_jacobian is state.jacobian  # no task weight: skip the scaling
         weighted = xdot if unit else state.weight * xdot
         reports = []

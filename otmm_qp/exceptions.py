@@ -62,8 +62,12 @@ class PluginNotFound(OtmmError):
         self.name = name
         self.available = sorted(available)
         kind = group.rsplit(".", 1)[-1].replace("_", "-")
+        if kind.endswith("ies"):  # trajectories -> trajectory
+            kind = kind[:-3] + "y"
+        elif kind.endswith("s"):
+            kind = kind[:-1]
         super().__init__(
-            f"unknown {kind[:-1] if kind.endswith('s') else kind} {name!r}; "
+            f"unknown {kind} {name!r}; "
             f"available: {', '.join(self.available) or '(none)'}"
         )
 

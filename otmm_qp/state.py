@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from otmm_qp.exceptions import NonFiniteState
+from otmm_qp.exceptions import DimensionError, NonFiniteState
 from otmm_qp.robots.robot import FloatArray, Robot
 
 _unit_weights: dict[int, FloatArray] = {}
@@ -66,8 +66,17 @@ class KinematicState:
         Args:
             robot: The arm.
             q: Configuration, shape ``(nq,)``.
-            weight: Task weight diagonal, shape ``(n,)``; identity when None.
+            weight: Task weight diagonal, shape ``(n,)``; identity when None. (Its values are
+                checked once per run by :func:`~otmm_qp.simulation.simulate.simulate`.)
+
+        Raises:
+            DimensionError: ``q`` is not of shape ``(nq,)`` or ``weight`` not ``(n,)``.
+            NonFiniteState: The Jacobian contains NaN or inf.
         """
+        if not isinstance(q, np.ndarray):
+            q = np.asarray(q, dtype=float)
+        if q.shape != (robot.nq,):
+            raise DimensionError("q", (robot.nq,), q.shape)
         x, jacobian = robot.kinematics(q)
         if weight is None:
             n = jacobian.shape[0]
@@ -77,6 +86,9 @@ class KinematicState:
                 weight.flags.writeable = False
             task_jacobian = jacobian
         else:
+            if not isinstance(weight, np.ndarray) or weight.shape != (jacobian.shape[0],):
+                shape = np.shape(weight)
+                raise DimensionError("weight", (jacobian.shape[0],), shape)
             task_jacobian = weight[:, None] * jacobian
         U, sigma, Vt = thin_svd(task_jacobian)
         # NaN/inf anywhere in J shows in σ_max (LAPACK propagates it): one scalar check.

@@ -12,7 +12,11 @@ from otmm_qp import registry
 from otmm_qp.config.load import parse_config
 from otmm_qp.exceptions import PeerUnavailable, RobotLoadError
 from otmm_qp.peers import models
+from otmm_qp.controller import Controller
+from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.simulation.simulate import simulate
+from otmm_qp.state import KinematicState
 from otmm_qp.runner import run_suite
 
 PEER_ENTRY_POINTS = {
@@ -165,3 +169,99 @@ def test_peer_tracks_like_qp(peer_entry_points: None, peer: str, scenario: dict[
     assert m_theirs["rms_error"] <= m_ours["rms_error"] + TRACKING_TOLERANCE
     assert m_theirs["max_error"] <= m_ours["max_error"] + TRACKING_TOLERANCE
     assert float(np.max(np.abs(theirs.result.q - ours.result.q))) <= JOINT_TOLERANCE
+
+
+# ------------------------------------------------------- the same problem as qp
+def _weighted_limit_active_step(
+    backends: dict[str, dict[str, Any]],
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """One UR5 pose step with joint 0 overridden to ±1 rad and sitting near its upper limit.
+
+    The command drives joint 0 past the limit, so the box clips it and the five other joints
+    cannot realise the 6-D twist: the weighted least-squares answer depends on W.
+    """
+    robot = registry.create(
+        registry.ROBOTS, "pinocchio",
+        {"name": "ur5", "task": "pose", "position_limits": [[-1.0, 1.0]] + [[-6.2, 6.2]] * 5},
+        "robot",
+    )  # fmt: skip
+    theta = np.array([0.99, -1.2, 1.5, -1.8, 0.6, 0.3])
+    weight = np.array([2.0, 1.0, 0.5, 0.3, 0.2, 0.4])
+    state = KinematicState.compute(robot, robot.configuration(theta), weight)
+    xdot = weight * np.array([-0.3, 0.2, 0.1, 0.2, -0.1, 0.3])  # weighted, as a filter passes it
+    answers = {}
+    for name, params in backends.items():
+        backend = registry.create(registry.BACKENDS, params["type"], params["params"], name)
+        backend.bind(robot, 0.01)
+        backend.reset()
+        answers[name] = backend.solve(state, xdot, np.zeros(robot.nv)).qdot
+    upper = 0.5 * (1.0 - theta[0]) / 0.01  # qp's position bound on q̇_0, limit_gain 0.5
+    return answers, np.array([upper])
+
+
+@pytest.mark.usefixtures("peer_entry_points")
+def test_pink_and_mink_solve_qps_weighted_limit_active_problem() -> None:
+    pytest.importorskip("pink")
+    pytest.importorskip("mink")
+    damping = 1e-6
+    answers, upper = _weighted_limit_active_step(
+        {
+            "qp": {"type": "qp", "params": {"solver": "daqp", "damping": damping}},
+            "pink": {"type": "pink", "params": {"damping": damping}},
+            "mink": {"type": "mink", "params": {"damping": damping}},
+        }
+    )
+    assert answers["qp"][0] == pytest.approx(upper[0], abs=1e-9)  # the limit is active
+    for peer in ("pink", "mink"):
+        np.testing.assert_allclose(answers[peer], answers["qp"], atol=1e-6, err_msg=peer)
+        assert answers[peer][0] <= upper[0] + 1e-9  # zero violations
+
+
+@pytest.mark.usefixtures("peer_entry_points")
+def test_the_weight_changes_the_answer_so_the_agreement_test_can_fail() -> None:
+    answers, _ = _weighted_limit_active_step(
+        {"qp": {"type": "qp", "params": {"solver": "daqp", "damping": 1e-6}}}
+    )
+    robot = PinocchioArm(name="ur5", position_limits=[[-1.0, 1.0]] + [[-6.2, 6.2]] * 5)
+    theta = np.array([0.99, -1.2, 1.5, -1.8, 0.6, 0.3])
+    state = KinematicState.compute(robot, robot.configuration(theta))
+    backend = registry.create(registry.BACKENDS, "qp", {"solver": "daqp", "damping": 1e-6}, "qp")
+    backend.bind(robot, 0.01)
+    unweighted = backend.solve(state, np.array([-0.3, 0.2, 0.1, 0.2, -0.1, 0.3]), np.zeros(6))
+    assert np.max(np.abs(unweighted.qdot - answers["qp"])) > 1e-2
+
+
+@pytest.mark.usefixtures("peer_entry_points")
+def test_drake_solves_the_direction_preserving_problem_of_qp_scaled() -> None:
+    pytest.importorskip("pydrake")
+    answers, upper = _weighted_limit_active_step(
+        {
+            "qp_scaled": {"type": "qp_scaled", "params": {}},
+            "drake": {"type": "drake", "params": {}},
+        }
+    )
+    np.testing.assert_allclose(answers["drake"], answers["qp_scaled"], atol=1e-5)
+    assert answers["drake"][0] <= upper[0] + 1e-9
+
+
+@pytest.mark.parametrize("peer", ["pink", "mink", "drake"])
+def test_position_limit_override_reaches_the_peer_in_a_run(
+    peer_entry_points: None, peer: str
+) -> None:
+    """The issue's reproduction: UR5, joint 0 limited to ±1 rad, driven past it."""
+    pytest.importorskip(PEER_MODULES[peer])
+    robot = PinocchioArm(
+        name="ur5", task="position", position_limits=[[-1.0, 1.0]] + [[-6.2, 6.2]] * 5
+    )
+    q0 = robot.configuration(np.array([0.7, -1.2, 1.5, -1.8, 0.6, 0.3]))
+    start = robot.forward(q0)
+    turn = np.array([[np.cos(0.8), -np.sin(0.8), 0.0], [np.sin(0.8), np.cos(0.8), 0.0], [0, 0, 1]])
+    trajectory = registry.create(
+        registry.TRAJECTORIES, "quintic_line", {"end": (turn @ start).tolist(), "duration": 1.0},
+        "trajectory", start=start,
+    )  # fmt: skip
+    backend = registry.create(registry.BACKENDS, peer, {}, peer)
+    result = simulate(robot, Controller(peer, [], backend), trajectory, q0, 0.01, 1.5)
+    assert result.error_message is None
+    assert float(np.max(result.q[:, 0])) <= 1.0 + 1e-9
+    assert float(np.max(result.q[:, 0])) > 0.95  # the limit was really approached

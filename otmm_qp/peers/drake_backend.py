@@ -15,7 +15,7 @@ from otmm_qp.backends.backend import (
 )
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, planar_urdf, root_link
-from otmm_qp.peers.peer_backend import PeerBackend, require
+from otmm_qp.peers.peer_backend import PeerBackend, check_limit_gain, require
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -43,6 +43,9 @@ class DrakeBackend(PeerBackend):
 
     Args:
         stuck_scaling: α below which Drake reports ``stuck``, in ``[0, 1)``.
+        limit_gain: ``g ∈ (0, 1]``: Drake's position constraint ``θ_min ≤ θ + q̇·dt ≤ θ_max``
+            is given the limits ``θ ± g·(θ_max − θ)`` each step, so it bounds ``q̇`` by
+            ``g(θ_max − θ)/dt`` as ``qp`` does.
 
     Raises:
         PeerUnavailable: pydrake is not installed.
@@ -52,11 +55,12 @@ class DrakeBackend(PeerBackend):
     name = "drake"
     peer = "drake"
 
-    def __init__(self, stuck_scaling: float = 0.01) -> None:
+    def __init__(self, stuck_scaling: float = 0.01, limit_gain: float = 0.5) -> None:
         require("drake", ["pydrake.multibody.inverse_kinematics", "pydrake.multibody.plant"])
         if not 0.0 <= stuck_scaling < 1.0:
             raise ParameterError("stuck_scaling", f"must be in [0, 1), got {stuck_scaling}")
         self.stuck_scaling = float(stuck_scaling)
+        self.limit_gain = check_limit_gain(limit_gain)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""
@@ -98,7 +102,8 @@ class DrakeBackend(PeerBackend):
         lower, upper = robot.position_limits
         q_low = np.full(plant.num_positions(), -np.inf)
         q_high = np.full(plant.num_positions(), np.inf)
-        q_low[self._map.position_index], q_high[self._map.position_index] = lower, upper
+        self._limit_arrays = (q_low, q_high)
+        self._lower, self._upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         parameters.set_joint_position_limits((q_low, q_high))
         v_max = np.full(plant.num_velocities(), np.inf)
         v_max[self._map.velocity_index] = robot.velocity_limits
@@ -122,6 +127,11 @@ class DrakeBackend(PeerBackend):
         """Drake's joint velocity [rad/s], shape ``(nv,)``, for the commanded velocity."""
         theta = self.robot.joint_coordinates(state.q)
         self._plant.SetPositions(self._context, self._map.to_peer(theta, self._q0))
+        q_low, q_high = self._limit_arrays
+        gain, index = self.limit_gain, self._map.position_index
+        q_low[index] = theta - gain * (theta - self._lower)  # ±inf stays ±inf
+        q_high[index] = theta + gain * (self._upper - theta)
+        self._parameters.set_joint_position_limits((q_low, q_high))
         linear, angular = self.spatial_velocity(self.robot, self.physical_velocity(state, xdot))
         result = self._ik.DoDifferentialInverseKinematics(
             self._plant,

@@ -8,8 +8,9 @@ import numpy as np
 
 from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
-from otmm_qp.peers.models import mujoco_joint_map, mujoco_model, pose_mismatch
+from otmm_qp.peers.models import JointMap, mujoco_joint_map, mujoco_model, pose_mismatch
 from otmm_qp.peers.peer_backend import PeerBackend, require
+from otmm_qp.peers.velocity_task import VelocityTaskData, task_rows
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -18,11 +19,15 @@ POSE_TOLERANCE = 1e-9
 
 
 class MinkBackend(PeerBackend):
-    r"""``mink.solve_ik`` with one site ``FrameTask``, configuration and velocity limits.
+    r"""``mink.solve_ik`` with one velocity-level site task, configuration and velocity limits.
 
     .. math::
-        \min_{\Delta q}\ \|J\Delta q + e\|_{W}^2 + \mu\|\Delta q\|^2
-        \quad\text{s.t. configuration and velocity limits}, \qquad \dot q = \Delta q/dt
+        \min_{\Delta q}\ \|W(J\Delta q + e)\|^2 + \mu\|\Delta q\|^2
+        \quad\text{s.t. configuration (gain g) and velocity limits}, \qquad \dot q = \Delta q/dt
+
+    with ``e = −ẋ·dt`` and ``J`` the commanded rows of the site's world-aligned Jacobian
+    (:mod:`otmm_qp.peers.velocity_task`): ``qp``'s problem with ``λ = μ``. The MuJoCo model's
+    joint ranges are the robot's effective limits (overrides included).
 
     The MuJoCo model is generated (:func:`~otmm_qp.peers.models.planar_mjcf`, in radians)
     for a planar arm or loaded from the arm's URDF with ``package://`` paths rewritten
@@ -35,6 +40,7 @@ class MinkBackend(PeerBackend):
         damping: Tikhonov weight μ ≥ 0 of mink's ``solve_ik``.
         lm_damping: Levenberg–Marquardt damping ≥ 0 of the frame task.
         limits: Enforce configuration and velocity limits.
+        limit_gain: ``g ∈ (0, 1]`` of the configuration limits (``qp``'s ``limit_gain``).
 
     Raises:
         PeerUnavailable: mink or mujoco is not installed.
@@ -51,9 +57,10 @@ class MinkBackend(PeerBackend):
         damping: float = 1e-12,
         lm_damping: float = 0.0,
         limits: bool = True,
+        limit_gain: float = 0.5,
     ) -> None:
         require("mink", ["mujoco", "mink"])
-        self.configure_qp(solver, damping, lm_damping, limits)
+        self.configure_qp(solver, damping, lm_damping, limits, limit_gain)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build the MuJoCo model, check it against Pinocchio, set up task and limits.
@@ -75,15 +82,11 @@ class MinkBackend(PeerBackend):
         self._mink = mink
         self._site = site
         self._map = mujoco_joint_map(robot, model)
+        write_position_limits(model, robot, self._map)
         self._qpos0 = np.array(model.qpos0)
         self._configuration = mink.Configuration(model)
-        self._task = mink.FrameTask(
-            site,
-            "site",
-            position_cost=1.0,
-            orientation_cost=self.orientation_weight(),
-            lm_damping=self.lm_damping,
-        )
+        self._data = VelocityTaskData(task_rows(robot))
+        self._task = _mink_velocity_task(site, self._data, self.lm_damping)
         self._limits: list[Any] = []
         if self.use_limits:
             speeds = {
@@ -91,7 +94,7 @@ class MinkBackend(PeerBackend):
                 for name, v in zip(robot.joint_names, robot.velocity_limits, strict=True)
                 if np.isfinite(v)
             }
-            self._limits = [mink.ConfigurationLimit(model)]
+            self._limits = [mink.ConfigurationLimit(model, gain=self.limit_gain)]
             if speeds:
                 self._limits.append(mink.VelocityLimit(model, speeds))
 
@@ -103,10 +106,7 @@ class MinkBackend(PeerBackend):
         configuration = self._configuration
         theta = self.robot.joint_coordinates(state.q)
         configuration.update(self._map.to_peer(theta, self._qpos0))
-        pose = configuration.get_transform_frame_to_world(self._site, "site").as_matrix()
-        linear, angular = self.spatial_velocity(self.robot, self.physical_velocity(state, xdot))
-        target = self.advanced_pose(pose, linear, angular, self.dt)
-        self._task.set_target(mink.SE3.from_matrix(target))
+        self._data.set_command(self.physical_velocity(state, xdot), state.weight, self.dt)
         try:
             velocity = mink.solve_ik(
                 configuration,
@@ -119,3 +119,40 @@ class MinkBackend(PeerBackend):
         except mink.MinkError:
             return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
         return BackendOutput(self._map.from_peer_velocity(velocity), STATUS_OK)
+
+
+def write_position_limits(model: Any, robot: Robot, joint_map: JointMap) -> None:
+    """Write the robot's effective position limits (overrides included) into ``model``."""
+    import mujoco
+
+    lower, upper = robot.position_limits
+    for index, name in enumerate(robot.joint_names):
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        bounded = bool(np.isfinite(lower[index]) and np.isfinite(upper[index]))
+        model.jnt_limited[jid] = int(bounded)
+        if bounded:
+            model.jnt_range[jid] = [lower[index], upper[index]]
+
+
+def _mink_velocity_task(site: str, data: VelocityTaskData, lm_damping: float) -> Any:
+    """A mink ``Task`` with ``e = −ẋ·dt`` and ``J = S·J_LWA`` (see :mod:`velocity_task`)."""
+    import mujoco
+    from mink.tasks import Task
+
+    class MinkVelocityTask(Task):  # type: ignore[misc]
+        def __init__(self) -> None:
+            super().__init__(cost=data.cost, lm_damping=lm_damping)
+            self._site_id: int | None = None
+
+        def compute_error(self, configuration: Any) -> FloatArray:
+            return data.error
+
+        def compute_jacobian(self, configuration: Any) -> FloatArray:
+            model = configuration.model
+            if self._site_id is None:
+                self._site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+            jacobian = np.empty((6, model.nv))
+            mujoco.mj_jacSite(model, configuration.data, jacobian[:3], jacobian[3:], self._site_id)
+            return jacobian[data.rows]
+
+    return MinkVelocityTask()

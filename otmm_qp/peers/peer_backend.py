@@ -50,6 +50,17 @@ def require(peer: str, modules: Sequence[str]) -> None:
             ) from error
 
 
+def check_limit_gain(limit_gain: float) -> float:
+    """``limit_gain`` as a float in (0, 1] (the position-limit gain ``g`` of ``qp``).
+
+    Raises:
+        ParameterError: Outside (0, 1] or not finite.
+    """
+    if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
+        raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
+    return float(limit_gain)
+
+
 class PeerBackend(Backend):
     """A backend that delegates each step to a third-party IK library.
 
@@ -93,12 +104,15 @@ class PeerBackend(Backend):
         target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
         return target
 
-    def configure_qp(self, solver: str, damping: float, lm_damping: float, limits: bool) -> None:
+    def configure_qp(
+        self, solver: str, damping: float, lm_damping: float, limits: bool, limit_gain: float
+    ) -> None:
         """Validate and store the settings shared by the QP-based peers (pink, mink).
 
         Raises:
             SolverNotFound: ``solver`` is not an installed qpsolvers backend.
-            ParameterError: A damping is negative or not finite.
+            ParameterError: A damping is negative or not finite, or ``limit_gain`` is not in
+                (0, 1].
         """
         import qpsolvers
 
@@ -111,6 +125,7 @@ class PeerBackend(Backend):
         self.damping = float(damping)
         self.lm_damping = float(lm_damping)
         self.use_limits = bool(limits)
+        self.limit_gain = check_limit_gain(limit_gain)
 
     def orientation_weight(self) -> float:
         """1 for pose tasks, 0 when only the position is commanded."""

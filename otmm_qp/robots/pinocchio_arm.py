@@ -67,6 +67,50 @@ def _example_robot_data_dir(relative_urdf: str) -> str:
         raise RobotLoadError(f"name: cannot locate {relative_urdf!r}: {error}") from error
 
 
+@dataclass(frozen=True)
+class _Source:
+    """Where a model comes from: URDF path, robot name, default frame, locks, package dirs."""
+
+    urdf_path: str
+    name: str
+    frame: str | None
+    locked: dict[str, float | None]
+    package_dirs: list[str]
+
+
+def _resolve_source(
+    name: str | None, urdf: str | None, package_dirs: Sequence[str] | None
+) -> _Source:
+    """The URDF of an example-robot-data ``name`` or of a ``urdf`` path.
+
+    Raises:
+        RobotLoadError: Both or neither given, unknown ``name``, or no file at the path.
+    """
+    if (name is None) == (urdf is None):
+        raise RobotLoadError("robot: give exactly one of name (example-robot-data) or urdf")
+    extra = [str(d) for d in package_dirs] if package_dirs is not None else []
+    if name is not None:
+        if name not in ARMS:
+            raise RobotLoadError(
+                f"name: unknown robot {name!r}; valid names: {', '.join(sorted(ARMS))}"
+            )
+        description = ARMS[name]
+        robots_dir = _example_robot_data_dir(description.urdf)
+        source = _Source(
+            os.path.join(robots_dir, description.urdf),
+            name,
+            description.frame,
+            dict.fromkeys(description.locked, 0.0),
+            extra + [os.path.normpath(os.path.join(robots_dir, "..", ".."))],
+        )
+    else:
+        path = os.path.abspath(os.path.expanduser(str(urdf)))
+        source = _Source(path, os.path.splitext(os.path.basename(path))[0], None, {}, extra)
+    if not os.path.isfile(source.urdf_path):
+        raise RobotLoadError(f"urdf: file not found: {source.urdf_path}")
+    return source
+
+
 class PinocchioArm(Robot):
     r"""A fixed-base serial arm loaded with Pinocchio; task = frame position or pose.
 
@@ -112,6 +156,7 @@ class PinocchioArm(Robot):
         urdf_path: Absolute URDF path.
         package_dirs: Package directories (list of str).
         reach: Conservative reach bound [m] from the first joint (see :meth:`can_reach`).
+        locked_joints: Value [rad or m] each joint removed from the model is fixed at.
 
     Raises:
         RobotLoadError: Unknown ``name`` (listing valid names), missing URDF (naming the
@@ -133,86 +178,45 @@ class PinocchioArm(Robot):
     ) -> None:
         if task not in _TASK_DIMS:
             raise ParameterError("task", f"must be 'position' or 'pose', got {task!r}")
-        if (name is None) == (urdf is None):
-            raise RobotLoadError("robot: give exactly one of name (example-robot-data) or urdf")
-        locked: dict[str, float | None] = {}
-        if name is not None:
-            if name not in ARMS:
-                raise RobotLoadError(
-                    f"name: unknown robot {name!r}; valid names: {', '.join(sorted(ARMS))}"
-                )
-            description = ARMS[name]
-            robots_dir = _example_robot_data_dir(description.urdf)
-            urdf_path = os.path.join(robots_dir, description.urdf)
-            default_frame: str | None = description.frame
-            locked.update(dict.fromkeys(description.locked, 0.0))
-            dirs = [os.path.normpath(os.path.join(robots_dir, "..", ".."))]
-            if package_dirs is not None:
-                dirs = [str(d) for d in package_dirs] + dirs
-            self.name = name
-        else:
-            urdf_path = os.path.abspath(os.path.expanduser(str(urdf)))
-            default_frame = None
-            dirs = [str(d) for d in package_dirs] if package_dirs is not None else []
-            self.name = os.path.splitext(os.path.basename(urdf_path))[0]
-        if not os.path.isfile(urdf_path):
-            raise RobotLoadError(f"urdf: file not found: {urdf_path}")
-        self.urdf_path: str | None = urdf_path
-        self.package_dirs: list[str] = dirs
+        source = _resolve_source(name, urdf, package_dirs)
+        self.name = source.name
+        self.urdf_path: str | None = source.urdf_path
+        self.package_dirs: list[str] = source.package_dirs
         self.task_kind = task
         try:
-            full = pin.buildModelFromUrdf(urdf_path)
+            full = pin.buildModelFromUrdf(source.urdf_path)
         except (RuntimeError, ValueError) as error:
-            raise RobotLoadError(f"urdf: cannot parse {urdf_path}: {error}") from error
-
+            raise RobotLoadError(f"urdf: cannot parse {source.urdf_path}: {error}") from error
+        locked = dict(source.locked)
         if isinstance(locked_joints, Mapping):
             locked.update({str(k): float(v) for k, v in locked_joints.items()})
         elif locked_joints is not None:
             locked.update(dict.fromkeys((str(k) for k in locked_joints), None))
-        self.model = self._reduce(full, locked)
+        self.model, self.locked_joints = self._reduce(full, locked)
         self.data = self.model.createData()
-
-        frame_name = frame if frame is not None else default_frame
-        if frame_name is None:
-            frame_name = str(self.model.frames[len(self.model.frames) - 1].name)
-        names = [str(f.name) for f in self.model.frames]
-        if frame_name not in names:
-            raise FrameNotFound(frame_name, sorted(set(names)))
-        self.frame_name = frame_name
-        self.frame_id = self._frame_index(frame_name)
-
+        self._select_frame(frame if frame is not None else source.frame)
         self._check_joint_types()
         self._names = tuple(str(n) for n in list(self.model.names)[1:])
+        self._nq, self._nv = int(self.model.nq), int(self.model.nv)
         self._neutral = pin.neutral(self.model)
-        self._lower, self._upper = self._default_position_limits()
-        if position_limits is not None:
-            bounds = np.asarray(position_limits, dtype=float)
-            if bounds.shape != (self.nv, 2):
-                raise DimensionError("position_limits", (self.nv, 2), bounds.shape)
-            if np.any(bounds[:, 0] >= bounds[:, 1]):
-                raise ParameterError(
-                    "position_limits", "each row must be [lower, upper] with lower < upper"
-                )
-            self._lower, self._upper = bounds[:, 0].copy(), bounds[:, 1].copy()
-        speeds = np.array(self.model.velocityLimit, dtype=float)
-        speeds[~(speeds > 0.0)] = np.inf  # URDFs without a limit give 0
-        if velocity_limits is not None:
-            speeds = np.asarray(velocity_limits, dtype=float)
-            if speeds.shape != (self.nv,):
-                raise DimensionError("velocity_limits", (self.nv,), speeds.shape)
-            if np.any(~(speeds > 0.0)):
-                raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s or m/s]")
-        self._velocity = speeds
+        self._lower, self._upper = self._position_limits(position_limits)
+        self._velocity = self._velocity_limits(velocity_limits)
         self._euclidean = self.model.nq == self.model.nv
         self._rows = _TASK_DIMS[task]
         self.reach = self._reach_bound()
 
     # ------------------------------------------------------------------ loading
-    def _reduce(self, full: Any, locked: Mapping[str, float | None]) -> Any:
-        """Model with the ``locked`` joints fixed (value None: 0 clipped into its limits)."""
+    @staticmethod
+    def _reduce(full: Any, locked: Mapping[str, float | None]) -> tuple[Any, dict[str, float]]:
+        """Model with the ``locked`` joints fixed (value None: 0 clipped into its limits).
+
+        Returns:
+            The reduced model and the value [rad or m] each locked joint is fixed at.
+        """
         if not locked:
-            return full
+            return full, {}
         joint_ids = []
+        values: dict[str, float] = {}
         reference = pin.neutral(full)
         valid = [str(n) for n in list(full.names)[1:]]
         for joint, value in locked.items():
@@ -230,8 +234,51 @@ class PinocchioArm(Robot):
             iq = joint_model.idx_q
             lo, hi = full.lowerPositionLimit[iq], full.upperPositionLimit[iq]
             reference[iq] = min(max(0.0 if value is None else value, lo), hi)
+            values[joint] = float(reference[iq])
             joint_ids.append(jid)
-        return pin.buildReducedModel(full, joint_ids, reference)
+        return pin.buildReducedModel(full, joint_ids, reference), values
+
+    def _select_frame(self, frame_name: str | None) -> None:
+        """Set the end-effector frame (the model's last frame when None).
+
+        Raises:
+            FrameNotFound: ``frame_name`` is not a frame of the model.
+        """
+        if frame_name is None:
+            frame_name = str(self.model.frames[len(self.model.frames) - 1].name)
+        names = [str(f.name) for f in self.model.frames]
+        if frame_name not in names:
+            raise FrameNotFound(frame_name, sorted(set(names)))
+        self.frame_name = frame_name
+        self.frame_id = self._frame_index(frame_name)
+
+    def _position_limits(
+        self, override: Sequence[Sequence[float]] | None
+    ) -> tuple[FloatArray, FloatArray]:
+        """``(lower, upper)`` [rad or m], shapes ``(nv,)``: the override or the URDF's."""
+        if override is None:
+            return self._default_position_limits()
+        bounds = np.asarray(override, dtype=float)
+        if bounds.shape != (self.nv, 2):
+            raise DimensionError("position_limits", (self.nv, 2), bounds.shape)
+        if np.any(bounds[:, 0] >= bounds[:, 1]):
+            raise ParameterError(
+                "position_limits", "each row must be [lower, upper] with lower < upper"
+            )
+        return bounds[:, 0].copy(), bounds[:, 1].copy()
+
+    def _velocity_limits(self, override: Sequence[float] | None) -> FloatArray:
+        """Joint speed limits [rad/s or m/s], shape ``(nv,)``: the override or the URDF's."""
+        if override is None:
+            speeds = np.array(self.model.velocityLimit, dtype=float)
+            speeds[~(speeds > 0.0)] = np.inf  # URDFs without a limit give 0
+            return speeds
+        speeds = np.asarray(override, dtype=float)
+        if speeds.shape != (self.nv,):
+            raise DimensionError("velocity_limits", (self.nv,), speeds.shape)
+        if np.any(~(speeds > 0.0)):
+            raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s or m/s]")
+        return speeds
 
     def _frame_index(self, frame_name: str) -> int:
         """Index of ``frame_name``; a body frame wins when a joint frame shares its name."""
@@ -297,12 +344,12 @@ class PinocchioArm(Robot):
     @property
     def nv(self) -> int:
         """Number of joint velocity coordinates."""
-        return int(self.model.nv)
+        return self._nv
 
     @property
     def nq(self) -> int:
         """Size of the configuration vector (> nv with continuous joints)."""
-        return int(self.model.nq)
+        return self._nq
 
     @property
     def task_dim(self) -> int:

@@ -64,6 +64,7 @@ class PlanarArm(Robot):
                 raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s]")
             self._velocity = speeds
         self._names = tuple(f"joint{i + 1}" for i in range(m))
+        self._m = int(m)
         # Matrix forms of the cumulative sums keep kinematics() to a few numpy calls.
         self._prefix_sum = np.tril(np.ones((m, m)))  # θ = L q
         self._suffix_sum = np.triu(np.ones((m, m))).T  # column j of (links @ S): Σ_{i≥j}
@@ -75,6 +76,16 @@ class PlanarArm(Robot):
     def joint_names(self) -> tuple[str, ...]:
         """``joint1 … jointm``."""
         return self._names
+
+    @property
+    def nv(self) -> int:
+        """Number of joints ``m``."""
+        return self._m
+
+    @property
+    def nq(self) -> int:
+        """Number of joints ``m`` (revolute: one coordinate each)."""
+        return self._m
 
     @property
     def task_dim(self) -> int:

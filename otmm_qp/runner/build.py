@@ -283,7 +283,7 @@ def prepare_experiment(
         if weight.shape != (robot.task_dim,):
             raise ConfigError(
                 f"{field}.task_weight",
-                str(DimensionError("task_weight", (robot.task_dim,), weight.shape)),
+                f"expected shape {(robot.task_dim,)}, got {weight.shape}",
             )
     x0 = robot.forward(q0)
     trajectory: Trajectory = registry.create(

@@ -4,21 +4,70 @@ from __future__ import annotations
 
 import math
 import time
-
+from collections.abc import Callable
 import numpy as np
 
-from otmm_qp.controller import Controller
-from otmm_qp.exceptions import InfeasibleProblem, OtmmError
+from otmm_qp.controller import Controller, ControllerOutput
+from otmm_qp.exceptions import DimensionError, InfeasibleProblem, OtmmError, ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.simulation.loop_modes import LoopMode, commanded_velocity
+from otmm_qp.simulation.loop_modes import LOOP_MODES, LoopMode, commanded_velocity
+from otmm_qp.simulation.recorder import RunRecorder, task_position
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
 from otmm_qp.trajectories.trajectory import Trajectory
 
+__all__ = ["StepObserver", "check_run_arguments", "simulate", "task_position"]
 
-def task_position(x: FloatArray) -> FloatArray:
-    """Position part of a task value: the point itself, or the translation of a 4×4 pose."""
-    return x[:3, 3] if x.ndim == 2 else x
+#: Called after every completed step with ``(k, state, command ẋ_c, q̇_prev, output)``.
+StepObserver = Callable[[int, KinematicState, FloatArray, FloatArray, ControllerOutput], None]
+
+
+def _positive_finite(name: str, value: float, allow_zero: bool = False) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, f"must be a number, got {value!r:.40}") from None
+    if not math.isfinite(number) or number < 0.0 or (number == 0.0 and not allow_zero):
+        allowed = ">= 0" if allow_zero else "> 0"
+        raise ParameterError(name, f"must be a finite number {allowed}, got {number}")
+    return number
+
+
+def check_run_arguments(
+    robot: Robot,
+    q0: FloatArray,
+    dt: float,
+    duration: float,
+    loop_mode: str,
+    clik_gain: float,
+    task_weight: FloatArray | None,
+) -> tuple[FloatArray, int, FloatArray | None]:
+    """Validate the arguments of :func:`simulate` once per run.
+
+    Returns:
+        ``(q0 as a float array (nq,), number of steps, task weight (n,) or None)``.
+
+    Raises:
+        ParameterError: ``dt``, ``duration``, ``clik_gain``, ``loop_mode`` or ``task_weight``
+            out of range (naming the argument).
+        DimensionError: ``q0`` or ``task_weight`` of the wrong shape.
+    """
+    dt = _positive_finite("dt", dt)
+    duration = _positive_finite("duration", duration, allow_zero=True)
+    _positive_finite("clik_gain", clik_gain, allow_zero=True)
+    if loop_mode not in LOOP_MODES:
+        raise ParameterError("loop_mode", f"must be one of {', '.join(LOOP_MODES)}")
+    q = np.array(q0, dtype=float)
+    if q.shape != (robot.nq,):
+        raise DimensionError("q0", (robot.nq,), q.shape)
+    weight = None
+    if task_weight is not None:
+        weight = np.asarray(task_weight, dtype=float)
+        if weight.shape != (robot.task_dim,):
+            raise DimensionError("task_weight", (robot.task_dim,), weight.shape)
+        if not np.all(np.isfinite(weight) & (weight > 0.0)):
+            raise ParameterError("task_weight", "every weight must be a finite number > 0")
+    return q, max(1, int(round(duration / dt))), weight
 
 
 def simulate(
@@ -32,6 +81,8 @@ def simulate(
     clik_gain: float = 10.0,
     task_weight: FloatArray | None = None,
     experiment: str = "",
+    *,
+    on_step: StepObserver | None = None,
 ) -> RunResult:
     r"""Run ``controller`` on ``robot`` along ``trajectory`` with explicit Euler integration.
 
@@ -42,52 +93,42 @@ def simulate(
         controller: Filters + backend.
         trajectory: Desired motion.
         q0: Start configuration, shape ``(nq,)`` (already checked against limits).
-        dt: Control period [s].
-        duration: Simulated time [s]; ``round(duration/dt)`` steps are taken.
+        dt: Control period [s], finite and > 0.
+        duration: Simulated time [s], finite and >= 0; ``max(1, round(duration/dt))`` steps.
         loop_mode: How ``ẋ_c`` is formed (see :mod:`otmm_qp.simulation.loop_modes`).
         clik_gain: CLIK gain K [1/s].
-        task_weight: Diagonal task weight ``W``, shape ``(n,)``.
+        task_weight: Diagonal task weight ``W``, shape ``(n,)``, finite and > 0.
         experiment: Experiment name recorded in the result.
+        on_step: Observer called after each step (e.g. to keep the states a benchmark replays).
 
     Returns:
         The time series. A typed error inside the loop (e.g. an infeasible QP with the
-        ``raise`` policy) stops the run early; the steps done so far are kept and
-        ``error_message`` says why.
-    """
-    steps = max(1, int(round(duration / dt)))
-    nv = robot.nv
-    n = robot.task_dim
-    controller.bind(robot, dt)
-    t = np.arange(steps) * dt
-    q_log = np.zeros((steps, nv))
-    qdot_log = np.zeros((steps, nv))
-    error_log = np.zeros((steps, n))
-    sigma_log = np.zeros(steps)
-    p_log = np.zeros(steps)
-    active_log = np.zeros(steps, dtype=bool)
-    removed_log = np.zeros(steps)
-    damping_log = np.full(steps, np.nan)
-    scale_log = np.ones(steps)
-    weak_log = np.zeros(steps)
-    status_log = np.empty(steps, dtype=object)
-    time_log = np.zeros(steps)
-    positions: list[FloatArray] = []
-    desired: list[FloatArray] = []
+        ``raise`` policy, or a non-finite ``q0``) stops the run early; the steps done so far
+        are kept and ``error_message`` says why.
 
-    q = np.array(q0, dtype=float)
-    qdot_prev = np.zeros(nv)
-    error_message: str | None = None
-    done = 0
-    for k in range(steps):
-        tk = float(t[k])
-        xd, xd_dot = trajectory.sample(tk)
+    Raises:
+        ParameterError: ``dt``, ``duration``, ``clik_gain``, ``loop_mode`` or ``task_weight``
+            out of range.
+        DimensionError: ``q0`` or ``task_weight`` of the wrong shape.
+    """
+    q, steps, weight = check_run_arguments(
+        robot, q0, dt, duration, loop_mode, clik_gain, task_weight
+    )
+    controller.bind(robot, dt)
+    recorder = RunRecorder(robot, steps, dt)
+    qdot_prev = np.zeros(robot.nv)
+    error_message = None if np.all(np.isfinite(q)) else "q0: contains NaN or inf; no step taken"
+    for k in range(steps if error_message is None else 0):
+        tk = float(recorder.t[k])
+        desired, desired_velocity = trajectory.sample(tk)
         tic = time.perf_counter()
-        state = KinematicState.compute(robot, q, task_weight)
-        tracking_error = robot.task_error(xd, state.x)
-        command = commanded_velocity(
-            loop_mode, robot, trajectory, tk, dt, state.x, tracking_error, xd_dot, clik_gain
-        )
         try:
+            state = KinematicState.compute(robot, q, weight)
+            tracking_error = robot.task_error(desired, state.x)
+            command = commanded_velocity(
+                loop_mode, robot, trajectory, tk, dt, state.x, tracking_error,
+                desired_velocity, clik_gain,
+            )  # fmt: skip
             output = controller.step(state, command, qdot_prev)
         except InfeasibleProblem as error:
             error_message = str(InfeasibleProblem(k, error.detail))
@@ -95,57 +136,10 @@ def simulate(
         except OtmmError as error:
             error_message = f"step {k}: {error}"
             break
-        time_log[k] = time.perf_counter() - tic
-        qdot = output.qdot
-        q_log[k] = robot.joint_coordinates(q)
-        qdot_log[k] = qdot
-        error_log[k] = tracking_error
-        sigma_log[k] = state.sigma_min
-        if output.reports:
-            p_log[k] = max(r.p for r in output.reports)
-            active_log[k] = any(r.active for r in output.reports)
-            if active_log[k]:
-                difference = state.weight * (command - output.xdot_filtered)
-                removed_log[k] = math.sqrt(float(difference @ difference))
-        damping_log[k] = output.backend.damping
-        scale_log[k] = output.backend.scale
-        weak_log[k] = abs(float(state.weakest_joint_direction @ qdot))
-        status_log[k] = output.backend.status
-        positions.append(task_position(state.x).copy())
-        desired.append(task_position(xd).copy())
-        q = robot.integrate(q, qdot, dt)
-        qdot_prev = qdot
-        done = k + 1
-
-    def cut(a: np.ndarray) -> np.ndarray:
-        return a[:done]
-
-    d = 3 if robot.task_kind == "pose" else n
-    return RunResult(
-        experiment=experiment,
-        controller=controller.name,
-        loop_mode=loop_mode,
-        dt=dt,
-        joint_names=robot.joint_names,
-        task_kind=robot.task_kind,
-        t=cut(t),
-        q=cut(q_log),
-        qdot=cut(qdot_log),
-        position=np.array(positions).reshape(done, d),
-        position_desired=np.array(desired).reshape(done, d),
-        error=cut(error_log),
-        sigma_min=cut(sigma_log),
-        p=cut(p_log),
-        filter_active=cut(active_log),
-        removed=cut(removed_log),
-        damping=cut(damping_log),
-        scale=cut(scale_log),
-        weak_speed=cut(weak_log),
-        status=cut(status_log),
-        step_time=cut(time_log),
-        position_limits=robot.position_limits,
-        velocity_limits=robot.velocity_limits,
-        filters="+".join(f.name for f in controller.filters) or "none",
-        backend=controller.backend.name,
-        error_message=error_message,
-    )
+        seconds = time.perf_counter() - tic
+        recorder.record(k, state, command, tracking_error, desired, output, seconds)
+        if on_step is not None:
+            on_step(k, state, command, qdot_prev, output)
+        q = robot.integrate(q, output.qdot, dt)
+        qdot_prev = output.qdot
+    return recorder.result(controller, loop_mode, dt, experiment, error_message)

@@ -1,0 +1,8 @@
+"""Per-step cost of otmm-qp pipelines against pink, mink and Drake, measured side by side.
+
+:func:`run_bench` is what ``otmm-qp bench`` and ``benchmarks/bench_step.py`` call.
+"""
+
+from otmm_qp.bench.run import run_bench
+
+__all__ = ["run_bench"]

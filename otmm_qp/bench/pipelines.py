@@ -1,0 +1,159 @@
+r"""The timed pipelines, built through :mod:`otmm_qp.registry` exactly as a YAML config would.
+
+What one *control step* is, per pipeline (everything from the configuration to ``q̇``):
+
+* otmm-qp: ``KinematicState.compute(robot, q)`` (kinematics + the one SVD) and
+  ``Controller.step(state, ẋ, q̇_prev)`` (filters + backend) — the step of ``otmm-qp run``;
+* pink, mink, Drake: the public ``solve(state, ẋ, q̇_prev)`` of the registered adapter
+  (:mod:`otmm_qp.peers`) with its default parameters, as an experiment runs it: the peer's
+  own configuration update, task and limits, and its QP (the SVD of ``state`` is unused).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from otmm_qp import registry
+from otmm_qp.bench.scenarios import DT, Scenario, otmm_controller
+from otmm_qp.controller import Controller
+from otmm_qp.exceptions import OtmmError
+from otmm_qp.state import KinematicState
+
+StepFunction = Callable[[int], None]
+#: The pipeline every ratio is taken against.
+REFERENCE = "pink (daqp)"
+#: Peer libraries (the first word of their pipeline labels).
+PEERS = ("pink", "mink", "drake")
+#: QP solvers timed through pink and mink; the otmm-qp ``qp`` solvers compared with each.
+PEER_SOLVERS = ("daqp", "proxqp", "osqp")
+OUR_SOLVERS = {
+    "daqp": "daqp",
+    "direct_daqp": "daqp",
+    "proxqp": "proxqp",
+    "direct_proxsuite": "proxqp",
+    "osqp": "osqp",
+    "direct_osqp": "osqp",
+}
+#: The persistent daqp session of ``qp`` (the solver path timed with the fast path off).
+PERSISTENT_DAQP = "direct_daqp"
+EVERY_STEP = "QP every step"
+
+
+@dataclass(frozen=True)
+class PipelineSpec:
+    """One pipeline as a config names it.
+
+    Attributes:
+        label: Row label in the tables.
+        backend: Registered backend name.
+        params: Its YAML parameters.
+        otmm: Whether the OTMM filter runs in front (otmm-qp pipelines only).
+        peer: Whether the backend is a peer adapter (timed through its ``solve``).
+    """
+
+    label: str
+    backend: str
+    params: dict[str, Any] = field(default_factory=dict)
+    otmm: bool = False
+    peer: bool = False
+
+
+def pipeline_specs(full: bool) -> list[PipelineSpec]:
+    """Every pipeline of a scenario: each backend alone and with OTMM, then the peers.
+
+    Args:
+        full: Time every QP solver (Panda); otherwise daqp only (planar).
+    """
+    backends: list[tuple[str, str, dict[str, Any]]] = [
+        ("pinv", "pinv", {}),
+        ("dls", "dls", {"damping": 0.05}),
+        ("dls_adaptive", "dls_adaptive", {"alpha": 0.003, "sigma_threshold": 0.05}),
+    ]
+    solvers = list(OUR_SOLVERS) if full else ["daqp", PERSISTENT_DAQP]
+    backends += [(f"qp ({solver})", "qp", {"solver": solver}) for solver in solvers]
+    specs: list[PipelineSpec] = []
+    for label, backend, params in backends:
+        specs.append(PipelineSpec(label, backend, params))
+        specs.append(PipelineSpec(f"otmm+{label}", backend, params, otmm=True))
+    specs.append(
+        PipelineSpec(
+            f"otmm+qp ({PERSISTENT_DAQP}, {EVERY_STEP})", "qp",
+            {"solver": PERSISTENT_DAQP, "fast_path": False}, otmm=True,
+        )
+    )  # fmt: skip
+    for peer in ("pink", "mink"):
+        for solver in PEER_SOLVERS if full else ("daqp",):
+            specs.append(PipelineSpec(f"{peer} ({solver})", peer, {"solver": solver}, peer=True))
+    specs.append(PipelineSpec("drake (DiffIK)", "drake", {}, peer=True))
+    return specs
+
+
+@contextlib.contextmanager
+def quiet_logs() -> Iterator[None]:
+    """Silence Drake's URDF parser warnings while the peers are built."""
+    logger = logging.getLogger("drake")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def _controller_step(scenario: Scenario, controller: Controller) -> StepFunction:
+    robot, qs, xdots, prevs = scenario.robot, scenario.q, scenario.xdot, scenario.qdot_prev
+    controller.bind(robot, DT)
+    compute, step = KinematicState.compute, controller.step
+
+    def run(k: int) -> None:
+        step(compute(robot, qs[k]), xdots[k], prevs[k])
+
+    return run
+
+
+def _adapter_step(scenario: Scenario, spec: PipelineSpec) -> StepFunction:
+    adapter = registry.create(registry.BACKENDS, spec.backend, spec.params, spec.label)
+    adapter.bind(scenario.robot, DT)
+    adapter.reset()
+    states = [KinematicState.compute(scenario.robot, q) for q in scenario.q]
+    xdots, prevs, solve = scenario.xdot, scenario.qdot_prev, adapter.solve
+
+    def run(k: int) -> None:
+        solve(states[k], xdots[k], prevs[k])
+
+    return run
+
+
+def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction], list[str]]:
+    """Step functions of every pipeline that can be built, and a note for each that cannot.
+
+    A pipeline is left out, with a note, when its peer library is not installed or its
+    parameters are not accepted (e.g. a QP solver that is not installed).
+    """
+    steps: dict[str, StepFunction] = {}
+    notes: list[str] = []
+    for spec in pipeline_specs(full):
+        try:
+            with quiet_logs():
+                if spec.peer:
+                    steps[spec.label] = _adapter_step(scenario, spec)
+                else:
+                    controller = (
+                        otmm_controller(spec.label, spec.backend, spec.params)
+                        if spec.otmm
+                        else _plain_controller(spec)
+                    )
+                    steps[spec.label] = _controller_step(scenario, controller)
+        except OtmmError as error:  # missing peer, solver not installed, robot refused
+            notes.append(f"{spec.label}: skipped ({error})")
+    return steps, notes
+
+
+def _plain_controller(spec: PipelineSpec) -> Controller:
+    backend = registry.create(registry.BACKENDS, spec.backend, spec.params, spec.label)
+    backend.name = spec.backend
+    return Controller(spec.label, [], backend)

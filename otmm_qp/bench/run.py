@@ -1,0 +1,82 @@
+"""``otmm-qp bench``: time every pipeline on recorded states and write the tables."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Any
+
+from qpsolvers.warnings import SparseConversionWarning
+
+from otmm_qp.bench.pipelines import build_steps
+from otmm_qp.bench.scenarios import Scenario, panda_scenario, planar_scenario
+from otmm_qp.bench.tables import STEP_DEFINITION, markdown
+from otmm_qp.bench.timing import check_targets, load_average, machine, summarise, time_pipelines
+from otmm_qp.exceptions import ParameterError
+
+ROUNDS = 5
+#: Fewest replayed states accepted (the percentiles need a few samples per round).
+MIN_STEPS = 10
+
+
+def bench_scenario(scenario: Scenario, full: bool, rounds: int) -> dict[str, Any]:
+    """Time every pipeline on ``scenario``; its rows, targets and notes."""
+    steps, notes = build_steps(scenario, full)
+    rows = summarise(time_pipelines(steps, scenario.steps, rounds))
+    return {
+        "name": scenario.name,
+        "description": scenario.description,
+        "bounded_fraction": scenario.bounded_fraction,
+        "rows": rows,
+        "targets": check_targets(rows),
+        "notes": notes,
+    }
+
+
+def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = False) -> int:
+    """Time all pipelines, write ``bench.json`` and ``bench.md`` into ``out``, print the table.
+
+    Args:
+        out: Output directory (created).
+        steps: Replayed states per scenario (control steps per pass), >= :data:`MIN_STEPS`.
+        rounds: Interleaved timing rounds, >= 1.
+        planar_only: Time the planar scenario only (a quick check).
+
+    Returns:
+        0 (the exit status; unmet targets are reported in the table, not as a failure).
+
+    Raises:
+        ParameterError: ``steps`` or ``rounds`` too small.
+    """
+    if steps < MIN_STEPS:
+        raise ParameterError("steps", f"must be >= {MIN_STEPS}, got {steps}")
+    if rounds < 1:
+        raise ParameterError("rounds", f"must be >= 1, got {rounds}")
+    info = machine()
+    with warnings.catch_warnings():
+        # qpsolvers warns on every dense-to-sparse conversion for OSQP (pink's path too):
+        # the cost is part of what is measured, the repeated text is not useful.
+        warnings.simplefilter("ignore", SparseConversionWarning)
+        # osqp 1.x warns that solve()'s raise_error default will change (qpsolvers calls it).
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
+        scenarios = [] if planar_only else [bench_scenario(panda_scenario(steps), True, rounds)]
+        scenarios.append(bench_scenario(planar_scenario(steps), False, rounds))
+    command = f"otmm-qp bench --out {out} --steps {steps}"
+    if rounds != ROUNDS:
+        command += f" --rounds {rounds}"
+    result = {
+        "command": command + (" --planar-only" if planar_only else ""),
+        "step_definition": STEP_DEFINITION,
+        "rounds": rounds,
+        "steps": steps,
+        "machine": info,
+        "load_average_end": load_average(),
+        "scenarios": scenarios,
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench.json").write_text(json.dumps(result, indent=2) + "\n")
+    table = markdown(result)
+    (out / "bench.md").write_text(table + "\n")
+    print(table)
+    return 0

@@ -1,0 +1,158 @@
+"""Interleaved per-step timing, summary statistics, the issue's targets and the machine."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import os
+import platform
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from otmm_qp.bench.pipelines import EVERY_STEP, OUR_SOLVERS, PEERS, REFERENCE, StepFunction
+from otmm_qp.robots.robot import FloatArray
+
+LIBRARIES = (
+    "numpy", "scipy", "pin", "qpsolvers", "daqp", "proxsuite", "osqp", "pin-pink", "mink",
+    "mujoco", "drake",
+)  # fmt: skip
+#: Targets on medians of one run, as fractions of :data:`REFERENCE`.
+DEFAULT_TARGET = 0.5
+EVERY_STEP_TARGET = 0.6
+PINV_TARGET = 0.35
+
+
+@contextlib.contextmanager
+def quiet_stdout() -> Iterator[None]:
+    """Send file descriptor 1 to /dev/null (OSQP's C code prints from inside solves)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def time_pipelines(
+    pipelines: dict[str, StepFunction], steps: int, rounds: int, seed: int = 0
+) -> dict[str, FloatArray]:
+    """Per-step times [µs] of each pipeline, shape ``(rounds·steps,)``, rounds interleaved.
+
+    Each round runs every pipeline once over the whole state sequence (as a control loop
+    would, keeping caches and warm starts), in a fresh random order. One untimed pass per
+    pipeline precedes round 0 (imports, first solver set-up).
+    """
+    rng = np.random.default_rng(seed)
+    names = list(pipelines)
+    samples = {name: np.empty((rounds, steps)) for name in names}
+    clock = time.perf_counter
+    with quiet_stdout():
+        for run in pipelines.values():
+            for k in range(steps):
+                run(k)
+        for r in range(rounds):
+            for name in rng.permutation(names):
+                run, row = pipelines[name], samples[name][r]
+                for k in range(steps):
+                    start = clock()
+                    run(k)
+                    row[k] = clock() - start
+    return {name: samples[name].ravel() * 1e6 for name in names}
+
+
+def summarise(times: dict[str, FloatArray]) -> list[dict[str, Any]]:
+    """Median, p10, p90, p99 [µs] and the ratio of medians to :data:`REFERENCE`."""
+    reference = float(np.median(times[REFERENCE])) if REFERENCE in times else float("nan")
+    rows = []
+    for name, t in times.items():
+        median = float(np.median(t))
+        p10, p90, p99 = (float(v) for v in np.percentile(t, [10, 90, 99]))
+        library = name.split(" ")[0]
+        rows.append(
+            {
+                "pipeline": name,
+                "library": library if library in PEERS else "otmm-qp",
+                "median_us": median,
+                "p10_us": p10,
+                "p90_us": p90,
+                "p99_us": p99,
+                "ratio_to_pink_daqp": median / reference,
+            }
+        )
+    return rows
+
+
+def _check(label: str, value: float, limit: float) -> dict[str, Any]:
+    return {"target": label, "value_us": value, "limit_us": limit, "met": value <= limit}
+
+
+def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The issue's targets, evaluated on medians of the same run.
+
+    * each default ``otmm+qp (solver)`` ≤ 0.5 × pink (daqp);
+    * ``otmm+qp`` with the QP solved every step (fast path off) ≤ 0.6 × pink (daqp);
+    * ``otmm+pinv`` ≤ 0.35 × pink (daqp);
+    * each ``qp`` pipeline ≤ pink with the same QP solver.
+    """
+    median = {row["pipeline"]: row["median_us"] for row in rows}
+    reference = median.get(REFERENCE)
+    if reference is None:
+        return []
+    checks: list[dict[str, Any]] = []
+    for name, value in median.items():
+        if name.startswith("otmm+qp ("):
+            fraction = EVERY_STEP_TARGET if EVERY_STEP in name else DEFAULT_TARGET
+            checks.append(_check(f"{name} ≤ {fraction} × {REFERENCE}", value, fraction * reference))
+    if "otmm+pinv" in median:
+        checks.append(
+            _check(f"otmm+pinv ≤ {PINV_TARGET} × {REFERENCE}", median["otmm+pinv"],
+                   PINV_TARGET * reference)
+        )  # fmt: skip
+    for name, value in median.items():
+        if "qp (" not in name or name.split(" ")[0] in PEERS:
+            continue
+        solver = name.split("(")[1].split(",")[0].rstrip(")")
+        peer = f"pink ({OUR_SOLVERS[solver]})"
+        if peer in median:
+            checks.append(_check(f"{name} ≤ {peer}", value, median[peer]))
+    return checks
+
+
+def machine() -> dict[str, Any]:
+    """CPU, core count, load average, Python and library versions."""
+    cpu = platform.processor() or platform.machine()
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    versions: dict[str, str | None] = {}
+    for library in LIBRARIES:
+        try:
+            versions[library] = importlib.metadata.version(library)
+        except importlib.metadata.PackageNotFoundError:
+            versions[library] = None
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "load_average_1_5_15": load_average(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "versions": versions,
+    }
+
+
+def load_average() -> list[float]:
+    """1, 5 and 15 minute load averages (NaN where the platform has none)."""
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    return [round(v, 2) for v in load]

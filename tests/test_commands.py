@@ -1,0 +1,161 @@
+"""Every CLI subcommand, benchmark script and example runs at a tiny size and says what it did."""
+
+from __future__ import annotations
+
+import json
+import runpy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from otmm_qp.cli import main
+from otmm_qp.exceptions import DimensionError, ParameterError, PluginNotFound
+
+ROOT = Path(__file__).parent.parent
+TINY_CONFIG = """
+name: tiny
+loop_modes: [clik]
+experiments:
+  - name: planar
+    robot: {type: planar, link_lengths: [1.0, 1.0]}
+    q0: [0.3, 1.2]
+    trajectory: {type: circle, centre: [1.2, 0.5], radius: 0.3, period: 1.0}
+    duration: 0.2
+    controllers:
+      - {name: pinv, backend: {type: pinv}}
+      - {name: otmm+qp, filters: [{type: otmm, sigma_s: 0.05}], backend: {type: qp}}
+"""
+
+
+def test_run_then_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    config = tmp_path / "tiny.yaml"
+    config.write_text(TINY_CONFIG)
+    out = tmp_path / "out"
+    assert main(["run", str(config), "--out", str(out), "--figures", "none", "--quiet"]) == 0
+    assert "2 runs in" in capsys.readouterr().out
+    rows = (out / "summary.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[0].startswith("experiment")
+    (out / "report.html").unlink()
+    assert main(["report", str(out)]) == 0
+    assert "report:" in capsys.readouterr().out and (out / "report.html").is_file()
+
+
+def test_list_names_every_group(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["list"]) == 0
+    text = capsys.readouterr().out
+    for heading in ("robots:", "filters:", "p_functions:", "backends:", "trajectories:"):
+        assert heading in text
+    assert "  qp " in text and "  otmm " in text
+
+
+def _check_bench_output(out: Path, scenarios: int) -> dict[str, object]:
+    result = json.loads((out / "bench.json").read_text())
+    assert len(result["scenarios"]) == scenarios
+    for scenario in result["scenarios"]:
+        rows = {row["pipeline"]: row for row in scenario["rows"]}
+        assert "otmm+qp (direct_daqp, QP every step)" in rows
+        assert all(row["median_us"] > 0 for row in rows.values())
+        if "pink (daqp)" in rows:
+            assert rows["pink (daqp)"]["ratio_to_pink_daqp"] == pytest.approx(1.0)
+    assert "| pipeline | median µs" in (out / "bench.md").read_text()
+    return result
+
+
+def test_bench_subcommand(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "bench"
+    assert main(["bench", "--out", str(out), "--steps", "10"]) == 0
+    assert "### Panda, 6-D pose task (7 DoF)" in capsys.readouterr().out
+    _check_bench_output(out, 2)
+
+
+def test_bench_rejects_too_few_steps(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["bench", "--out", str(tmp_path), "--steps", "3"]) == 2
+    assert "steps: must be >= 10, got 3" in capsys.readouterr().err
+
+
+def test_bench_step_script(tmp_path: Path) -> None:
+    script = runpy.run_path(str(ROOT / "benchmarks" / "bench_step.py"))
+    out = tmp_path / "bench"
+    argv = ["--out", str(out), "--steps", "10", "--rounds", "1", "--planar-only"]
+    assert script["main"](argv) == 0
+    _check_bench_output(out, 1)
+
+
+def test_bench_arm_step_script(capsys: pytest.CaptureFixture[str]) -> None:
+    script = runpy.run_path(str(ROOT / "benchmarks" / "bench_arm_step.py"))
+    results = script["main"](["--steps", "20"])
+    assert "KinematicState.compute" in results
+    assert "otmm+qp (direct_daqp, QP every step) [limits active]" in results
+    assert all(median > 0 for median, _ in results.values())
+    assert "median" in capsys.readouterr().out
+
+
+def test_every_benchmark_script_and_example_is_tested() -> None:
+    scripts = {p.name for p in (ROOT / "benchmarks").glob("*.py")}
+    assert scripts <= {"bench_step.py", "bench_arm_step.py", "bench_qp_session.py"}
+    examples = {p.name for p in (ROOT / "examples").iterdir()}
+    assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py
+
+
+# ----------------------------------------------------------- the Python API
+def test_api_shapes_raise_dimension_error() -> None:
+    from otmm_qp.controller import Controller
+    from otmm_qp.robots.planar_arm import PlanarArm
+    from otmm_qp.state import KinematicState
+    from otmm_qp_controllers.pinv import PseudoInverseBackend
+
+    robot = PlanarArm([1.0, 1.0])
+    with pytest.raises(DimensionError, match=r"q: expected shape \(2,\), got \(2, 2\)"):
+        KinematicState.compute(robot, np.zeros((2, 2)))
+    with pytest.raises(DimensionError, match="weight"):
+        KinematicState.compute(robot, np.array([0.3, 1.0]), np.ones(3))
+    state = KinematicState.compute(robot, np.array([0.3, 1.0]))
+    controller = Controller("pinv", [], PseudoInverseBackend())
+    controller.bind(robot, 0.01)
+    with pytest.raises(DimensionError, match="xdot"):
+        controller.step(state, np.zeros(3), np.zeros(2))
+    with pytest.raises(DimensionError, match=r"qdot_prev: expected shape \(2,\), got \(5,\)"):
+        controller.step(state, np.zeros(2), np.zeros(5))
+
+
+@pytest.mark.parametrize(
+    ("argument", "value"),
+    [("dt", 0.0), ("dt", -0.01), ("dt", float("nan")), ("dt", float("inf")),
+     ("duration", -1.0), ("duration", float("nan")), ("duration", float("inf"))],
+)  # fmt: skip
+def test_simulate_rejects_bad_time_arguments(argument: str, value: float) -> None:
+    from otmm_qp.controller import Controller
+    from otmm_qp.robots.planar_arm import PlanarArm
+    from otmm_qp.simulation import simulate
+    from otmm_qp.trajectories.circle import CircleTrajectory
+    from otmm_qp_controllers.pinv import PseudoInverseBackend
+
+    robot = PlanarArm([1.0, 1.0])
+    q0 = np.array([0.3, 1.2])
+    trajectory = CircleTrajectory(robot.forward(q0), [1.2, 0.5], 0.3, 1.0)
+    arguments = {"dt": 0.01, "duration": 0.1, argument: value}
+    with pytest.raises(ParameterError, match=f"^{argument}: "):
+        simulate(robot, Controller("p", [], PseudoInverseBackend()), trajectory, q0, **arguments)
+
+
+def test_simulate_with_nan_q0_returns_zero_steps_and_says_why() -> None:
+    from otmm_qp.controller import Controller
+    from otmm_qp.robots.planar_arm import PlanarArm
+    from otmm_qp.simulation import simulate
+    from otmm_qp.trajectories.circle import CircleTrajectory
+    from otmm_qp_controllers.pinv import PseudoInverseBackend
+
+    robot = PlanarArm([1.0, 1.0])
+    trajectory = CircleTrajectory(np.array([1.0, 1.0]), [1.2, 0.5], 0.3, 1.0)
+    controller = Controller("p", [], PseudoInverseBackend())
+    result = simulate(robot, controller, trajectory, np.array([np.nan, 1.0]), 0.01, 0.1)
+    assert result.steps == 0 and result.error_message is not None
+    assert "q0" in result.error_message
+    with pytest.raises(DimensionError, match="q0"):
+        simulate(robot, controller, trajectory, np.zeros(3), 0.01, 0.1)
+
+
+def test_unknown_plugin_message_singularises_trajectories() -> None:
+    assert "unknown trajectory 'x'" in str(PluginNotFound("otmm_qp.trajectories", "x", []))
+    assert "unknown backend 'x'" in str(PluginNotFound("otmm_qp.backends", "x", []))

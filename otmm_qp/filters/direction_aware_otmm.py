@@ -59,7 +59,8 @@ class DirectionAwareOtmmFilter(TaskFilter):
       settle at the boundary instead of overshooting through the singularity and chattering.
 
     Unbound (no robot), ``r`` is unknown: every step counts as approaching without the
-    barrier, i.e. OTMM with the bounded-gain p and the taper. At σ = 0 exactly, p = 1 in both states.
+    barrier, i.e. OTMM with the bounded-gain p and the taper. At σ = 0 exactly, p = 1 in
+    both states.
     Structurally singular arms (fewer joints than task rows) fall back to plain OTMM.
 
     Args:

@@ -18,7 +18,7 @@ import csv
 import io
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,6 +92,15 @@ def read_summary(path: Path) -> list[Entry]:
     return entries
 
 
+def _objective(index: int) -> Callable[[Entry], float]:
+    """Sort key: objective ``index`` of an entry."""
+
+    def key(entry: Entry) -> float:
+        return entry.values[index]
+
+    return key
+
+
 def _by_scenario(entries: Sequence[Entry]) -> dict[str, list[Entry]]:
     groups: dict[str, list[Entry]] = {}
     for entry in entries:
@@ -120,7 +129,7 @@ def pareto_markdown(entries: Sequence[Entry]) -> str:
             if not valid:
                 best.append("—")
                 continue
-            top = min(valid, key=lambda e, i=i: e.values[i])
+            top = min(valid, key=_objective(i))
             best.append(f"{top.controller} ({top.values[i]:.3g})")
         for entry in front:
             wins[entry.controller] = wins.get(entry.controller, 0) + 1

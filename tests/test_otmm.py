@@ -91,7 +91,8 @@ def test_parameter_errors() -> None:
     with pytest.raises(ParameterError, match="sigma_s: must be a finite number > 0"):
         OtmmFilter(sigma_s=0.0)
     with pytest.raises(
-        ConfigError, match="unknown p-function 'quartic'; available: cbrt, linear, power, sqrt"
+        ConfigError,
+        match="unknown p-function 'quartic'; available: bounded, cbrt, linear, power, sqrt",
     ):
         OtmmFilter(p="quartic")
     with pytest.raises(ConfigError, match="p_params.b: unknown parameter; allowed: a"):

@@ -73,3 +73,17 @@ def test_bad_thresholds() -> None:
     assert str(info.value) == (
         "hard_stop_threshold: must be finite and > lower_threshold (20.0), got 10.0"
     )
+
+
+def test_moveit_rule_matches_servo() -> None:
+    """Servo: band [17, 30] approaching, [17, 17 + 13·2] leaving, halt at κ ≥ 30 either way."""
+    f = ServoScalingFilter(rule="moveit")
+    assert f.scale(17.0, True) == 1.0 and f.scale(17.0, False) == 1.0
+    assert f.scale(23.5, True) == pytest.approx(0.5)
+    assert f.scale(23.5, False) == pytest.approx(1.0 - 6.5 / 26.0)
+    assert f.scale(30.0, False) == 0.0 and f.scale(np.inf, False) == 0.0
+    band = ServoScalingFilter()
+    assert band.scale(23.5, False) == 1.0  # the band rule starts at 34 when leaving
+    assert band.scale(40.0, False) > 0.0  # and lets a leaving command through above 30
+    with pytest.raises(ParameterError, match="rule: must be 'band' or 'moveit', got 'x'"):
+        ServoScalingFilter(rule="x")

@@ -11,9 +11,13 @@ Each maps ``s = σ_min ∈ [0, σ_S]`` to ``p ∈ [0, 1]``, monotone decreasing 
 Along the singular direction the joint speed per unit command is
 :math:`(1-p)/\sigma = (s/\sigma_S)^a/s`, bounded by :math:`1/\sigma_S` only for ``a ≥ 1``;
 for ``a < 1`` (sqrt, cbrt) it grows without bound as ``s → 0``.
+
+* ``bounded``: :math:`p = \max(p_{base}(s), 1 - G s)`, gain ``(1-p)/σ ≤ G`` (issue 11).
 """
 
 from __future__ import annotations
+
+import math
 
 from otmm_qp.exceptions import ParameterError
 
@@ -42,3 +46,61 @@ def power(s: float, sigma_s: float, a: float = 1.0) -> float:
     if not a > 0.0:
         raise ParameterError("a", f"exponent must be > 0, got {a}")
     return 1.0 - _ratio(s, sigma_s) ** a
+
+
+#: Gain cap of ``bounded`` when a config gives none, as a multiple of 1/σ_S: G = 2/σ_S
+#: (40 at the paper's σ_S = 0.05; chosen on the paper's E1/E2, see docs/strategies.md).
+DEFAULT_GAIN_FACTOR = 2.0
+_BASES = {"linear": linear, "sqrt": sqrt, "cbrt": cbrt, "power": power}
+
+
+def bounded(
+    s: float,
+    sigma_s: float,
+    max_gain: float | None = None,
+    base: str = "cbrt",
+    a: float = 1.0,
+) -> float:
+    r"""Bounded-gain p: :math:`p_G(s) = \max(p_{base}(s),\ 1 - G s)` for ``s ≤ σ_S``.
+
+    Gain bound. Along the filtered direction OTMM leaves :math:`(1-p)(u_s^\top\dot x)` of
+    the command, which an inverse with :math:`J^+ u_s = v_s/\sigma` turns into the joint
+    speed :math:`\dot q_s = \frac{1-p}{\sigma}(u_s^\top\dot x)\,v_s`. Since
+    :math:`p_G \ge 1 - G\sigma`,
+
+    .. math:: \|\dot q_s\| = \frac{1-p_G(\sigma)}{\sigma}\,|u_s^\top\dot x|
+              \le \frac{G\sigma}{\sigma}\,|u_s^\top\dot x| = G\,|u_s^\top\dot x|,
+
+    for every σ ∈ (0, σ_S]; at σ = 0 exactly :math:`p_G = 1` and nothing is left to invert.
+    Where :math:`p_{base} \ge 1 - G\sigma` already (σ near σ_S) ``p_G`` is the base p, so
+    the small window error of sqrt/cbrt is kept away from the singularity itself.
+    Continuity at σ_S needs :math:`1 - G\sigma_S \le 0 = p_{base}(\sigma_S)`, i.e.
+    ``G ≥ 1/σ_S`` (the linear p has exactly ``G = 1/σ_S``).
+
+    Args:
+        s: σ_min [task units].
+        sigma_s: Threshold σ_S > 0 [task units].
+        max_gain: Gain cap G ≥ 1/σ_S [rad/(task unit)]; ``None``: ``2/σ_S``.
+        base: Base p: ``linear``, ``sqrt``, ``cbrt`` or ``power``.
+        a: Exponent of the ``power`` base (ignored by the others).
+    """
+    if max_gain is None:
+        max_gain = DEFAULT_GAIN_FACTOR / sigma_s
+    elif not (
+        isinstance(max_gain, int | float)
+        and not isinstance(max_gain, bool)
+        and math.isfinite(max_gain)
+        and max_gain > 0.0
+    ):
+        raise ParameterError("max_gain", f"must be a finite number > 0, got {max_gain!r}")
+    if max_gain * sigma_s < 1.0 - 1e-12:
+        raise ParameterError(
+            "max_gain",
+            f"must be >= 1/sigma_s = {1.0 / sigma_s:.6g} so p is continuous at sigma_s, "
+            f"got {max_gain!r}",
+        )
+    function = _BASES.get(base)
+    if function is None:
+        raise ParameterError("base", f"must be one of {', '.join(_BASES)}, got {base!r}")
+    p_base = power(s, sigma_s, a) if function is power else function(s, sigma_s)
+    return max(p_base, 1.0 - max_gain * s)

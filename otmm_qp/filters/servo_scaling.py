@@ -36,12 +36,29 @@ class ServoScalingFilter(TaskFilter):
     as leaving (as in Servo). The look-ahead needs the robot: :meth:`bind` attaches it.
     Unbound, every command is treated as approaching (the conservative, narrow band).
 
+    Differences from MoveIt Servo's current rule (moveit2 ``moveit_servo/src/utils/common.cpp``,
+    ``velocityScalingFactorForSingularity``), checked against its source:
+
+    * Servo keeps ``κ_lo`` when leaving and widens only the top of the band, to
+      ``κ_lo + (κ_hs − κ_lo)·leaving_factor``; the default ``rule: band`` multiplies both.
+    * Servo halts (``s = 0``) at ``κ ≥ κ_hs`` in *both* directions — the wider leaving band
+      only changes the slope below ``κ_hs``; ``band`` lets a leaving command move up to
+      ``leaving_factor·κ_hs``.
+    * Servo's look-ahead step is :math:`J^+u_n/100` (length :math:`1/(100\sigma_n)`); here a
+      fixed joint step ``lookahead`` along :math:`v_n` (same direction, bounded length).
+    * Servo uses the unweighted 6-D Jacobian; here the (weighted) task Jacobian.
+    * Defaults agree: 17, 30, 2; a command with no component along :math:`u_n` counts as
+      leaving in both.
+
+    ``rule: moveit`` reproduces Servo's band and halt exactly (the look-ahead step stays).
+
     Args:
         lower_threshold: ``κ_lo ≥ 1`` where scaling starts (Servo default 17).
         hard_stop_threshold: ``κ_hs > κ_lo`` where the command stops (Servo default 30).
         leaving_factor: Threshold multiplier ``≥ 1`` when leaving (Servo's
             ``leaving_singularity_threshold_multiplier``, default 2).
         lookahead: Joint step ``ε > 0`` [rad] of the direction test.
+        rule: ``band`` (both thresholds × leaving_factor) or ``moveit`` (Servo's rule).
     """
 
     name = "servo_scaling"
@@ -52,7 +69,11 @@ class ServoScalingFilter(TaskFilter):
         hard_stop_threshold: float = 30.0,
         leaving_factor: float = 2.0,
         lookahead: float = 1e-3,
+        rule: str = "band",
     ) -> None:
+        if rule not in ("band", "moveit"):
+            raise ParameterError("rule", f"must be 'band' or 'moveit', got {rule!r}")
+        self.rule = rule
         if not (np.isfinite(lower_threshold) and lower_threshold >= 1.0):
             raise ParameterError(
                 "lower_threshold", f"must be a finite number >= 1, got {lower_threshold}"
@@ -88,6 +109,14 @@ class ServoScalingFilter(TaskFilter):
 
     def scale(self, kappa: float, approaching: bool) -> float:
         """Scale ``s ∈ [0, 1]`` at condition number ``kappa``."""
+        if self.rule == "moveit":
+            lower, hard_stop = self.lower_threshold, self.hard_stop_threshold
+            if kappa >= hard_stop:
+                return 0.0
+            top = hard_stop
+            if not approaching:
+                top = lower + (hard_stop - lower) * self.leaving_factor
+            return 1.0 if kappa <= lower else 1.0 - (kappa - lower) / (top - lower)
         factor = 1.0 if approaching else self.leaving_factor
         lower, hard_stop = self.lower_threshold * factor, self.hard_stop_threshold * factor
         if kappa <= lower:

@@ -49,6 +49,11 @@ def _parser() -> argparse.ArgumentParser:
     bench = commands.add_parser("bench", help="time one control step of each pipeline")
     bench.add_argument("--out", type=Path, default=Path("results/bench"))
     bench.add_argument("--steps", type=int, default=300)
+    from otmm_qp.commands import study as study_command  # until the dispatcher lands
+
+    study_command.add_arguments(
+        commands.add_parser(study_command.NAME, help=study_command.HELP)
+    )
     return parser
 
 
@@ -125,6 +130,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             html, markdown = write_report(args.results)
             print(f"report: {html}\n        {markdown}")
             return 0
+        if args.command == "study":
+            from otmm_qp.commands import study as study_command
+
+            return study_command.run(args)
         if args.command == "bench":
             from otmm_qp.bench import run_bench
 

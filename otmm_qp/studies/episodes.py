@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,10 +54,12 @@ class WorkUnit:
 
 @dataclass
 class ChunkResult:
-    """Rows of the episodes of a chunk, and sampled time series (one dict of columns each)."""
+    """Rows of the episodes of a chunk, sampled time series (one dict of columns each) and
+    the compute time of the chunk on its worker [s]."""
 
     rows: list[dict[str, Any]] = field(default_factory=list)
     series: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0
 
 
 def _study(payload: dict[str, Any]) -> tuple[StudyConfig, list[ControllerConfig]]:
@@ -219,7 +222,9 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
 
 def run_chunk(payload: dict[str, Any], units: list[WorkUnit]) -> ChunkResult:
     """Run every unit of a chunk (the function a Dask worker executes)."""
+    tic = time.perf_counter()
     result = ChunkResult()
     for unit in units:
         run_unit(payload, unit, result)
+    result.seconds = time.perf_counter() - tic
     return result

@@ -44,6 +44,7 @@ class StudyOutcome:
         failed: Of those, episodes with ``status != "ok"``.
         steps: Control steps simulated now.
         seconds: Wall time of the run [s].
+        compute_seconds: Sum of the chunks' compute times on their workers [s].
         interrupted: Stopped by Ctrl-C / SIGTERM.
     """
 
@@ -53,6 +54,7 @@ class StudyOutcome:
     failed: int = 0
     steps: int = 0
     seconds: float = 0.0
+    compute_seconds: float = 0.0
     interrupted: bool = False
 
 
@@ -181,6 +183,7 @@ def run_study(
     scheduler: str | None = None,
     force: bool = False,
     progress: ProgressHook | None = None,
+    client: Any = None,
 ) -> StudyOutcome:
     """Run the episodes of ``plan`` not yet stored in ``out``.
 
@@ -192,6 +195,7 @@ def run_study(
         scheduler: Address of an existing Dask scheduler (``tcp://host:port``).
         force: Replace the dataset of another study in ``out``.
         progress: Called with ``(episodes finished now, failures now)`` after each chunk.
+        client: An open Dask client to use instead of starting one (benchmarks reuse one).
 
     Returns:
         The outcome; an interrupt (Ctrl-C, SIGTERM) returns with ``interrupted = True``
@@ -224,10 +228,12 @@ def run_study(
         for result in results:
             rows = [r for r in result.rows if r["episode_key"] not in written]
             written.update(r["episode_key"] for r in rows)
-            series = [s for s in result.series if s["episode_key"] and s["episode_key"][0] in {r["episode_key"] for r in rows}]
+            fresh = {r["episode_key"] for r in rows}
+            series = [s for s in result.series if s["episode_key"] and s["episode_key"][0] in fresh]
             writer.write(rows, series)
             failed = sum(1 for r in rows if r.get("status") != "ok")
             outcome.ran += len(rows)
+            outcome.compute_seconds += result.seconds
             outcome.failed += failed
             outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
             if progress is not None:
@@ -235,7 +241,9 @@ def run_study(
 
     with _sigterm_as_interrupt():
         try:
-            if scheduler is None and workers == 1:
+            if client is not None:
+                consume(_distributed(client, payload, chunks))
+            elif scheduler is None and workers == 1:
                 consume(_serial(payload, chunks))
             elif chunks or scheduler is not None:
                 with dask_client(workers, scheduler) as client:

@@ -302,7 +302,7 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
             ax.set_ylabel("fraction of episodes")
         axes[0].legend(fontsize=6)
         figure.suptitle(f"{robot}: ECDFs")
-        figure.tight_layout()
+        figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
         written.append(_save(figure, out, f"ecdf-{robot}.png"))
 
         figure, axes = plt.subplots(1, 2, figsize=(9, 3.4))
@@ -319,7 +319,7 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
         if drawn:
             axes[0].legend(fontsize=6)
             figure.suptitle(f"{robot}: metrics vs σ_min at closest approach")
-            figure.tight_layout()
+            figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
             written.append(_save(figure, out, f"sigma-{robot}.png"))
         else:
             plt.close(figure)
@@ -341,7 +341,7 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
         ax.set_ylabel("median max error [m]")
         ax.legend(fontsize=6)
         ax.set_title(f"{robot}: Pareto (lower-left is better)")
-        figure.tight_layout()
+        figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
         written.append(_save(figure, out, f"pareto-{robot}.png"))
     return written
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from pydantic import ValidationError
 
@@ -21,7 +22,7 @@ from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig, PluginSpec
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.studies.schema import StudyConfig, StudyController
-from otmm_qp.tasks.generator import task_seed
+from otmm_qp.tasks.generator import TaskGenerationError, task_seed
 
 
 def _field_path(location: tuple[int | str, ...]) -> str:
@@ -240,6 +241,18 @@ def check_plugins(config: StudyConfig, controllers: list[ControllerConfig], sour
             )
     for j, gen in enumerate(config.generators):
         registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
+    for i, robot_spec in enumerate(config.robots):
+        robot = registry.create(
+            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
+        )
+        weight = np.asarray(robot_spec.task_weight, dtype=float) if robot_spec.task_weight else None
+        for j, gen in enumerate(config.generators):
+            generator = registry.create(registry.TASK_GENERATORS, gen.type, gen.params, "")
+            seed = task_seed(config.seed, robot_spec.name, gen.type, 0)
+            try:  # the first task: a generator that cannot work on this robot fails here
+                generator.generate(robot, seed, weight)
+            except TaskGenerationError as error:
+                raise ConfigError(f"{source}: generators.{j} ({gen.type})", str(error)) from None
     skipped: list[tuple[str, str]] = []
     for k, controller in enumerate(controllers):
         try:

@@ -51,9 +51,7 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--steps", type=int, default=300)
     from otmm_qp.commands import study as study_command  # until the dispatcher lands
 
-    study_command.add_arguments(
-        commands.add_parser(study_command.NAME, help=study_command.HELP)
-    )
+    study_command.add_arguments(commands.add_parser(study_command.NAME, help=study_command.HELP))
     return parser
 
 

@@ -108,9 +108,7 @@ def test_beyond_reach_target_is_unreachable_and_returns(ur5: Robot) -> None:
 
 
 def test_joint_path_passes_the_singular_configuration_at_the_drawn_offset(planar: Robot) -> None:
-    generator = registry.create(
-        registry.TASK_GENERATORS, "joint_path", {"offset": [0.0, 0.0]}, "g"
-    )
+    generator = registry.create(registry.TASK_GENERATORS, "joint_path", {"offset": [0.0, 0.0]}, "g")
     task = generator.generate(planar, 2)
     assert float(task.descriptors["sigma_min_closest"]) < 1e-3
     assert float(task.descriptors["joint_offset"]) == 0.0

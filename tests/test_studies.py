@@ -85,7 +85,9 @@ def test_serial_rows_are_complete(serial_out: Path) -> None:
     rows = _rows(serial_out)
     assert len(rows) == 15
     row = next(iter(rows.values()))
-    assert {"max_error", "max_joint_speed", "status_ok", "task_seed", "controller_params"} <= set(row)
+    assert {"max_error", "max_joint_speed", "status_ok", "task_seed", "controller_params"} <= set(
+        row
+    )
     near = [r for r in rows.values() if r["generator"] == "near_singular"]
     assert all(r["task.closest_distance"] is not None for r in near)
     marker = json.loads((serial_out / "study.json").read_text())
@@ -120,7 +122,9 @@ def test_resume_after_interrupt_adds_only_missing(serial_out: Path, tmp_path: Pa
 def test_cli_study_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     small = dict(TINY, generators=[dict(TINY["generators"][0], count=2)])
     path = _write(tmp_path, small)
-    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1", "--quiet"]) == 0
+    assert (
+        main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1", "--quiet"]) == 0
+    )
     out = capsys.readouterr().out
     assert "6 episodes run (0 failed)" in out
     report = (tmp_path / "out" / "study_report.md").read_text()
@@ -136,7 +140,10 @@ def _free_port() -> int:
 
 BAD = [
     ({"generators": [{"type": "nope", "count": 1}]}, "generators.0: unknown task-generator 'nope'"),
-    ({"generators": [{"type": "boundary", "count": 1, "wobble": 2}]}, "generators.0.wobble: unknown parameter"),
+    (
+        {"generators": [{"type": "boundary", "count": 1, "wobble": 2}]},
+        "generators.0.wobble: unknown parameter",
+    ),
     ({"generators": [{"type": "boundary", "count": 0}]}, "generators.0.count"),
     (
         {"controllers": [{"name": "a", "backend": {"type": "dls"}, "grid": {"damping": []}}]},
@@ -190,7 +197,9 @@ def test_other_study_directory_is_refused_unless_forced(
 ) -> None:
     target = tmp_path / "existing"
     shutil.copytree(serial_out, target)
-    other = _write(tmp_path, dict(TINY, name="other", generators=[dict(TINY["generators"][1], count=1)]))
+    other = _write(
+        tmp_path, dict(TINY, name="other", generators=[dict(TINY["generators"][1], count=1)])
+    )
     args = ["study", str(other), "--out", str(target), "--workers", "1", "--quiet", "--no-report"]
     assert main(args) == 2
     err = capsys.readouterr().err
@@ -200,12 +209,21 @@ def test_other_study_directory_is_refused_unless_forced(
     assert {r["study"] for r in _rows(target).values()} == {"other"}
 
 
-def test_unreachable_scheduler_fails_fast(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_unreachable_scheduler_fails_fast(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = _write(tmp_path, TINY)
     tic = time.monotonic()
     status = main(
-        ["study", str(path), "--out", str(tmp_path / "o"), "--scheduler",
-         f"tcp://127.0.0.1:{_free_port()}", "--quiet"]
+        [
+            "study",
+            str(path),
+            "--out",
+            str(tmp_path / "o"),
+            "--scheduler",
+            f"tcp://127.0.0.1:{_free_port()}",
+            "--quiet",
+        ]
     )
     elapsed = time.monotonic() - tic
     err = capsys.readouterr().err
@@ -234,13 +252,33 @@ def test_external_scheduler_with_a_worker_killed_midway(tmp_path: Path) -> None:
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     processes = [
-        _spawn(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port),
-                "--dashboard-address", ":0"])
+        _spawn(
+            [
+                "distributed.cli.dask_scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--dashboard-address",
+                ":0",
+            ]
+        )
     ]
     try:
         workers = [
-            _spawn(["distributed.cli.dask_worker", address, "--nthreads", "1", "--nworkers", "1",
-                    "--no-dashboard", "--host", "127.0.0.1"])
+            _spawn(
+                [
+                    "distributed.cli.dask_worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--nworkers",
+                    "1",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                ]
+            )
             for _ in range(2)
         ]
         processes += workers
@@ -256,9 +294,21 @@ def test_external_scheduler_with_a_worker_killed_midway(tmp_path: Path) -> None:
         path = _write(tmp_path, study)
         out = tmp_path / "out"
         driver = subprocess.Popen(
-            [sys.executable, "-m", "otmm_qp.cli", "study", str(path), "--out", str(out),
-             "--scheduler", address, "--quiet", "--no-report"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            [
+                sys.executable,
+                "-m",
+                "otmm_qp.cli",
+                "study",
+                str(path),
+                "--out",
+                str(out),
+                "--scheduler",
+                address,
+                "--quiet",
+                "--no-report",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
         )
         deadline = time.monotonic() + 90
         while time.monotonic() < deadline and driver.poll() is None:

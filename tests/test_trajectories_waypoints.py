@@ -31,7 +31,9 @@ def test_position_waypoints_pass_points_rest_between_and_return() -> None:
         assert np.allclose(x, point) and np.allclose(v, 0.0)
     assert trajectory.duration == pytest.approx(3.0)
     for t in np.linspace(0.05, 2.95, 17):
-        assert np.allclose(trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5)
+        assert np.allclose(
+            trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5
+        )
 
 
 def test_pose_waypoints_twist_matches_finite_difference() -> None:
@@ -41,7 +43,9 @@ def test_pose_waypoints_twist_matches_finite_difference() -> None:
         start, [[0.5, 0.0, 0.3, 0.2, -0.3, 0.5], [0.5, 0.2, 0.3]], segment_durations=[1.0, 2.0]
     )
     for t in np.linspace(0.05, 2.95, 13):
-        assert np.allclose(trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5)
+        assert np.allclose(
+            trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5
+        )
     end = trajectory.position(5.0)
     assert np.allclose(end[:3, :3], rpy_matrix([0.2, -0.3, 0.5]))
 
@@ -53,7 +57,9 @@ def test_joint_waypoints_reference_is_forward_kinematics() -> None:
     for t in np.linspace(0.05, 1.95, 9):
         q, _ = trajectory.joint_sample(float(t))
         assert np.allclose(trajectory.position(float(t)), arm.forward(q))
-        assert np.allclose(trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5)
+        assert np.allclose(
+            trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5
+        )
     spec = JointWaypointsTrajectory(
         np.zeros(2), {"type": "planar", "link_lengths": [1.0, 0.8]}, nodes, duration=2.0
     )
@@ -62,7 +68,11 @@ def test_joint_waypoints_reference_is_forward_kinematics() -> None:
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"waypoints": []}, {"waypoints": [[1.0, 2.0, 3.0]]}, {"waypoints": [[1.0, 0.0]], "duration": 0.0}],
+    [
+        {"waypoints": []},
+        {"waypoints": [[1.0, 2.0, 3.0]]},
+        {"waypoints": [[1.0, 0.0]], "duration": 0.0},
+    ],
 )
 def test_bad_waypoints(kwargs: dict) -> None:
     kwargs.setdefault("duration", 1.0)
@@ -84,11 +94,15 @@ def test_pose_circle_starts_at_rest_and_holds_after_its_duration() -> None:
     assert np.allclose(later[:3, :3], rpy_matrix([0.0, 0.0, 0.5]))
     assert np.allclose(later[:3, 3], start[:3, 3])  # one full turn
     for t in np.linspace(0.1, 3.9, 11):
-        assert np.allclose(trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5)
+        assert np.allclose(
+            trajectory.sample(float(t))[1], _finite_difference(trajectory, t), atol=1e-5
+        )
 
 
 def test_circle_quintic_profile_derivative_and_hold() -> None:
-    circle = CircleTrajectory(np.array([1.0, 0.0]), [0.0, 0.0], 1.0, 2.0, turns=0.5, profile="quintic")
+    circle = CircleTrajectory(
+        np.array([1.0, 0.0]), [0.0, 0.0], 1.0, 2.0, turns=0.5, profile="quintic"
+    )
     assert circle.duration == pytest.approx(1.0)
     assert np.allclose(circle.position(1.0), [-1.0, 0.0], atol=1e-12)
     assert np.allclose(circle.sample(2.0)[1], 0.0)

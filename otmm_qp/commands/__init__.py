@@ -1,0 +1,1 @@
+"""Subcommands of the ``otmm-qp`` CLI, one module each (contracts §2)."""

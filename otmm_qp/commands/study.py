@@ -70,7 +70,10 @@ def run(args: argparse.Namespace) -> int:
         html, markdown = write_study_report(out)
         print(f"  report: {html}\n          {markdown}")
     if outcome.interrupted:
-        print("otmm-qp: interrupted; every finished episode is stored (rerun to resume)", file=sys.stderr)
+        print(
+            "otmm-qp: interrupted; every finished episode is stored (rerun to resume)",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     return 0
 

@@ -54,8 +54,10 @@ class WorkUnit:
 
 @dataclass
 class ChunkResult:
-    """Rows of the episodes of a chunk, sampled time series (one dict of columns each) and
-    the compute time of the chunk on its worker [s]."""
+    """Episode rows of a chunk, sampled time series and the chunk's compute time [s].
+
+    Each time series is one dict of columns.
+    """
 
     rows: list[dict[str, Any]] = field(default_factory=list)
     series: list[dict[str, Any]] = field(default_factory=list)

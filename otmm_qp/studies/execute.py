@@ -1,5 +1,6 @@
-"""Run a study: in-process (``workers=1``), on an embedded Dask ``LocalCluster`` or on an
-existing Dask scheduler; results stream into the Parquet dataset chunk by chunk.
+"""Run a study in-process, on an embedded Dask ``LocalCluster`` or on an existing scheduler.
+
+``workers=1`` runs without Dask; results stream into the Parquet dataset chunk by chunk.
 
 The driver alone writes the dataset. A chunk's rows are written once, when its future
 completes; Dask re-runs the chunk of a worker that dies, and the driver still receives one
@@ -165,7 +166,9 @@ def _distributed(
 
     shared = client.scatter(payload, broadcast=True)
     futures = [
-        client.submit(run_chunk, shared, chunk, pure=False, retries=3, key=f"chunk-{i}-{time.time_ns()}")
+        client.submit(
+            run_chunk, shared, chunk, pure=False, retries=3, key=f"chunk-{i}-{time.time_ns()}"
+        )
         for i, chunk in enumerate(chunks)
     ]
     try:

@@ -103,11 +103,15 @@ def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
     return config, Rows(rows)
 
 
-def success_table(rows: Rows, robot: str | None) -> tuple[list[str], dict[str, tuple[float, float, float]]]:
-    """Markdown lines of success rates and medians; and success ``(rate, low, high)`` by controller."""
-    header = "| controller | episodes | errors | success [95 % CI] | " + " | ".join(
-        f"median {label} [{unit}] (95 % CI)" for _, label, unit in MEDIAN_METRICS
-    ) + " |"
+def success_table(
+    rows: Rows, robot: str | None
+) -> tuple[list[str], dict[str, tuple[float, float, float]]]:
+    """Markdown lines of success rates and medians, and ``controller → (rate, low, high)``."""
+    header = (
+        "| controller | episodes | errors | success [95 % CI] | "
+        + " | ".join(f"median {label} [{unit}] (95 % CI)" for _, label, unit in MEDIAN_METRICS)
+        + " |"
+    )
     lines = [header, "|" + "---|" * (4 + len(MEDIAN_METRICS))]
     rates: dict[str, tuple[float, float, float]] = {}
     for name in rows.controllers():
@@ -119,7 +123,12 @@ def success_table(rows: Rows, robot: str | None) -> tuple[list[str], dict[str, t
         low, high = wilson_interval(wins, n)
         rates[name] = (wins / n, low, high)
         errors = sum(1 for r in selected if r.get("status") == "error")
-        cells = [name, str(n), str(errors), f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"]
+        cells = [
+            name,
+            str(n),
+            str(errors),
+            f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
+        ]
         for metric, _, _ in MEDIAN_METRICS:
             values = np.array([_value(r, metric) for r in selected])
             cells.append(_interval(*bootstrap_median(values, seed=0, resamples=1000)))
@@ -223,12 +232,12 @@ def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> 
     for robot in rows.robots():
         out += _verdicts(rows, robot)
     out.append("")
-    for robot in [None, *rows.robots()]:
-        out += [f"## {'All robots' if robot is None else robot}", ""]
+    lines, _ = success_table(rows, None)
+    out += ["## All robots", "", *lines, ""]
+    for robot in rows.robots():
+        out += [f"## {robot}", ""]
         lines, rates = success_table(rows, robot)
         out += lines + [""]
-        if robot is None:
-            continue
         ranking = rank_with_ties(rates, higher_is_better=True)
         out.append(
             "Ranking by success rate (= marks a tie: overlapping intervals): "
@@ -293,10 +302,21 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
         for ax, (metric, label, unit) in zip(axes, MEDIAN_METRICS, strict=True):
             for name in rows.controllers():
                 values = np.sort(
-                    [v for v in (_value(r, metric) for r in rows.select(robot=robot, controller=name)) if math.isfinite(v) and v > 0]
+                    [
+                        v
+                        for v in (
+                            _value(r, metric) for r in rows.select(robot=robot, controller=name)
+                        )
+                        if math.isfinite(v) and v > 0
+                    ]
                 )
                 if values.size:
-                    ax.step(values, np.arange(1, values.size + 1) / values.size, where="post", label=name)
+                    ax.step(
+                        values,
+                        np.arange(1, values.size + 1) / values.size,
+                        where="post",
+                        label=name,
+                    )
             ax.set_xscale("log")
             ax.set_xlabel(f"{label} [{unit}]")
             ax.set_ylabel("fraction of episodes")
@@ -332,8 +352,13 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
             if not (math.isfinite(e[0]) and math.isfinite(s[0])):
                 continue
             ax.errorbar(
-                s[0], e[0], xerr=[[s[0] - s[1]], [s[2] - s[0]]], yerr=[[e[0] - e[1]], [e[2] - e[0]]],
-                fmt="o", capsize=2, label=name,
+                s[0],
+                e[0],
+                xerr=[[s[0] - s[1]], [s[2] - s[0]]],
+                yerr=[[e[0] - e[1]], [e[2] - e[0]]],
+                fmt="o",
+                capsize=2,
+                label=name,
             )
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -361,7 +386,9 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     md_path = out / "study_report.md"
     html_path = out / "study_report.html"
     atomic_write_text(md_path, markdown)
-    body = markdown_to_html("\n".join(line for line in markdown.splitlines() if not line.startswith("![")))
+    body = markdown_to_html(
+        "\n".join(line for line in markdown.splitlines() if not line.startswith("!["))
+    )
     images = "".join(f'<p><img src="{html.escape(f)}" alt="{html.escape(f)}"></p>' for f in figures)
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"

@@ -104,7 +104,10 @@ class SuccessCriteria(_Strict):
 
 
 class TimeSeriesConfig(_Strict):
-    """Sampled time series: the first ``tasks`` tasks per robot and generator, every ``stride`` steps."""
+    """Sampled time series of the first ``tasks`` tasks per robot and generator.
+
+    Every ``stride``-th step is kept.
+    """
 
     tasks: int = Field(2, ge=0)
     stride: int = Field(5, gt=0)

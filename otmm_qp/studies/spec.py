@@ -83,22 +83,20 @@ def _grid_target(spec: StudyController, key: str, field: str) -> tuple[str, int 
             raise ConfigError(f"{field}.grid.{key}", f"controller has {len(spec.filters)} filters")
         return "filters", index, parts[2]
     if len(parts) != 1:
-        raise ConfigError(
-            f"{field}.grid.{key}", "use NAME, backend.NAME or filters.INDEX.NAME"
-        )
+        raise ConfigError(f"{field}.grid.{key}", "use NAME, backend.NAME or filters.INDEX.NAME")
     owners: list[tuple[str, int | None]] = []
     blocks: list[tuple[str, int | None, PluginSpec, str]] = [
         ("filters", j, f, registry.FILTERS) for j, f in enumerate(spec.filters)
     ]
     blocks.append(("backend", None, spec.backend, registry.BACKENDS))
-    for kind, index, block, group in blocks:
+    for kind, position, block, group in blocks:
         try:
             registry.check_parameters(registry.load(group, block.type), {key: None}, "")
         except ConfigError:
             continue
         except OtmmError:
             continue
-        owners.append((kind, index))
+        owners.append((kind, position))
     if not owners:
         raise ConfigError(f"{field}.grid.{key}", "unknown parameter for every block")
     if len(owners) > 1:
@@ -131,10 +129,14 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
                 block[name] = value
             label = spec.name
             if keys:
-                label += "[" + ",".join(
-                    f"{k.rsplit('.', 1)[-1]}={_format_value(v)}"
-                    for k, v in zip(keys, combination, strict=True)
-                ) + "]"
+                label += (
+                    "["
+                    + ",".join(
+                        f"{k.rsplit('.', 1)[-1]}={_format_value(v)}"
+                        for k, v in zip(keys, combination, strict=True)
+                    )
+                    + "]"
+                )
             expanded.append(
                 ControllerConfig.model_validate(
                     {"name": label, "filters": filters, "backend": backend}
@@ -200,7 +202,14 @@ def _digest(record: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
-def episode_key(config: StudyConfig, robot: int, generator: int, index: int, controller: dict[str, Any], loop_mode: str) -> str:
+def episode_key(
+    config: StudyConfig,
+    robot: int,
+    generator: int,
+    index: int,
+    controller: dict[str, Any],
+    loop_mode: str,
+) -> str:
     """Hash of the episode's full spec (robot, task, controller, loop, numerics, metrics)."""
     robot_spec = config.robots[robot]
     gen = config.generators[generator]
@@ -219,7 +228,9 @@ def episode_key(config: StudyConfig, robot: int, generator: int, index: int, con
     return _digest(record)
 
 
-def check_plugins(config: StudyConfig, controllers: list[ControllerConfig], source: str) -> list[tuple[str, str]]:
+def check_plugins(
+    config: StudyConfig, controllers: list[ControllerConfig], source: str
+) -> list[tuple[str, str]]:
     """Build every robot, generator and controller once so bad input fails before any work.
 
     Returns:

@@ -53,9 +53,9 @@ def bootstrap_median(
 
 
 def holm(p_values: list[float]) -> list[float]:
-    """Holm step-down adjusted p-values (same order as given), capped at 1.
+    r"""Holm step-down adjusted p-values (same order as given), capped at 1.
 
-    :math:`\\tilde p_{(i)} = \\max_{j \\le i} \\min(1, (m - j + 1)\\,p_{(j)})` for sorted p.
+    :math:`\tilde p_{(i)} = \max_{j \le i} \min(1, (m - j + 1)\,p_{(j)})` for sorted p.
     """
     m = len(p_values)
     order = sorted(range(m), key=lambda i: p_values[i])
@@ -197,7 +197,9 @@ def binned_medians(
     y = np.asarray(y, dtype=float)
     keep = np.isfinite(x) & np.isfinite(y)
     x, y = x[keep], y[keep]
-    centres = np.sqrt(edges[:-1] * edges[1:]) if np.all(edges > 0) else 0.5 * (edges[:-1] + edges[1:])
+    centres = (
+        np.sqrt(edges[:-1] * edges[1:]) if np.all(edges > 0) else 0.5 * (edges[:-1] + edges[1:])
+    )
     medians = np.full(centres.size, np.nan)
     counts = np.zeros(centres.size, dtype=np.int64)
     for i in range(centres.size):

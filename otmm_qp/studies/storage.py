@@ -58,7 +58,9 @@ def prepare_directory(out: Path, study: str, force: bool) -> None:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        raise StudyDirectoryError(str(out), f"cannot create the output directory: {error.strerror}") from None
+        raise StudyDirectoryError(
+            str(out), f"cannot create the output directory: {error.strerror}"
+        ) from None
     marker = read_marker(out)
     if marker is not None and marker.get("study") != study:
         if not force:

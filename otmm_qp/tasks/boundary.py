@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -33,7 +34,9 @@ def outer_radius(robot: Robot) -> float:
     best = 0.0
     for _ in range(RADIUS_SAMPLES):
         q = random_coordinates(robot, rng, 0.0)
-        best = max(best, float(np.linalg.norm(position_of(robot.forward(robot.configuration(q))) - base)))
+        best = max(
+            best, float(np.linalg.norm(position_of(robot.forward(robot.configuration(q))) - base))
+        )
     return best
 
 
@@ -94,7 +97,9 @@ class BoundaryGenerator(TaskGenerator):
             beta = draw(rng, self.elevation) if base.size == 3 else 0.0
             theta = draw(rng, self.sweep)
             phi0 = float(rng.uniform(-math.pi, math.pi))
-            direction = "counterclockwise" if rng.random() < 0.5 else "clockwise"
+            direction: Literal["clockwise", "counterclockwise"] = (
+                "counterclockwise" if rng.random() < 0.5 else "clockwise"
+            )
             duration = draw(rng, self.duration)
             radius = rho * r_out * math.cos(beta)
             centre = base.copy()
@@ -127,5 +132,7 @@ class BoundaryGenerator(TaskGenerator):
             }
             return Task(q0, trajectory, trajectory.duration, descriptors)
         raise TaskGenerationError(
-            self.name, robot.name, f"no start on the boundary circle within {self.attempts} attempts"
+            self.name,
+            robot.name,
+            f"no start on the boundary circle within {self.attempts} attempts",
         )

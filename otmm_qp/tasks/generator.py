@@ -68,7 +68,9 @@ def check_range(name: str, value: Sequence[float], lower: float = 0.0) -> tuple[
     """
     pair = tuple(float(v) for v in value)
     if len(pair) != 2 or not (lower <= pair[0] <= pair[1]) or not np.all(np.isfinite(pair)):
-        raise ParameterError(name, f"must be [low, high] with {lower:g} <= low <= high, got {value}")
+        raise ParameterError(
+            name, f"must be [low, high] with {lower:g} <= low <= high, got {value}"
+        )
     return pair[0], pair[1]
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -177,7 +178,9 @@ class NearSingularGenerator(TaskGenerator):
         if centre.size == 2:
             # Counterclockwise in the x-y plane moves along +a at c iff (−b) × a > 0.
             cross = -(b[0] * a[1] - b[1] * a[0])
-            direction = "counterclockwise" if cross > 0.0 else "clockwise"
+            direction: Literal["clockwise", "counterclockwise"] = (
+                "counterclockwise" if cross > 0.0 else "clockwise"
+            )
             return CircleTrajectory(
                 start, list(centre), radius, period, direction, turns=turns, profile="quintic"
             )

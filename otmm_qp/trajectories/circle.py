@@ -23,7 +23,8 @@ class CircleTrajectory(Trajectory):
 
     (``−`` clockwise), ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` clipped to ``[0, 1]`` and ``T_d =
     turns·T``: the quintic profile starts and ends at rest and holds the end point after
-    ``T_d``; the constant one keeps circling (the paper's law). ``e_1, e_2`` span the plane: the x–y plane in 2-D, or ``normal``'s
+    ``T_d``; the constant one keeps circling (the paper's law). ``e_1, e_2`` span the plane:
+    the x–y plane in 2-D, or ``normal``'s
     orthogonal complement in 3-D. ``φ₀`` defaults to the angle of the circle point nearest
     to the start position.
 

@@ -102,7 +102,7 @@ class WaypointsTrajectory(Trajectory):
             if not np.all(np.isfinite(entry)):
                 raise ParameterError(f"waypoints.{j}", "must be finite")
             points.append(entry[:dim].copy())
-            rotations.append(rpy_matrix(entry[3:6]) if entry.size == 6 else rotations[-1])
+            rotations.append(rpy_matrix(entry[3:6].tolist()) if entry.size == 6 else rotations[-1])
         if return_to_start:
             points.append(begin.copy())
             rotations.append(rotation.copy())

@@ -2,8 +2,8 @@
 
     python benchmarks/bench_study.py --tasks 100 [--config configs/studies/arms.yaml]
 
-Scales the study's generator counts to about ``--tasks`` tasks in total (at least one per
-generator and robot), runs it (1) in-process without Dask and (2) on a LocalCluster of
+Scales the study's generator counts to about ``--tasks`` tasks in total (generators whose
+share rounds to zero are left out), runs it (1) in-process without Dask and (2) on a LocalCluster of
 ``--workers`` processes (default 2), each into a fresh directory, and reports:
 
 * episode compute: the sum of the chunks' compute times on their workers [s];
@@ -32,8 +32,10 @@ def scaled(config_path: Path, tasks: int) -> StudyConfig:
     total = sum(g.count for g in config.generators) * len(config.robots)
     factor = tasks / total
     generators = [
-        dict(g.model_dump(), count=max(1, round(g.count * factor))) for g in config.generators
-    ]
+        dict(g.model_dump(), count=round(g.count * factor))
+        for g in config.generators
+        if round(g.count * factor) > 0
+    ] or [dict(config.generators[0].model_dump(), count=1)]
     data = config.model_dump(mode="json")
     data["generators"] = generators
     data["time_series"] = {"tasks": 0, "stride": 5}

@@ -148,7 +148,7 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
         n_workers=workers or os.cpu_count() or 1,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=None,
+        dashboard_address=":0",  # never the shared default 8787
         silence_logs=50,
     )
     client = Client(cluster)

@@ -60,7 +60,10 @@ class StudyOutcome:
 
 
 def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
-    """Group the missing episodes by task, then tasks into chunks of ``chunk_size``."""
+    """Group the missing episodes by task, then tasks into chunks of ``chunk_size``.
+
+    Tasks are ordered by index first (round-robin over robots and generators).
+    """
     config = plan.config
     by_task: dict[tuple[int, int, int], list[tuple[str, int, str]]] = {}
     seeds: dict[tuple[int, int, int], int] = {}
@@ -81,6 +84,8 @@ def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
         )
         for task, episodes in by_task.items()
     ]
+    # Round-robin over robots and generators, so a partial dataset covers all of them.
+    units.sort(key=lambda u: (u.task_index, u.robot, u.generator))
     size = config.chunk_size
     return [units[i : i + size] for i in range(0, len(units), size)]
 

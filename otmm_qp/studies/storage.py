@@ -77,8 +77,15 @@ def prepare_directory(out: Path, study: str, force: bool) -> None:
 
 
 def write_marker(out: Path, record: dict[str, Any]) -> None:
-    """Write ``study.json`` atomically."""
-    atomic_write_text(out / MARKER, json.dumps(record, indent=2, sort_keys=True, default=str))
+    """Write ``study.json`` atomically.
+
+    Raises:
+        StudyDirectoryError: The directory is not writable (disk full, permissions).
+    """
+    try:
+        atomic_write_text(out / MARKER, json.dumps(record, indent=2, sort_keys=True, default=str))
+    except OSError as error:
+        raise StudyDirectoryError(str(out / MARKER), f"cannot write: {error.strerror}") from None
 
 
 def _table(rows: list[dict[str, Any]]) -> pa.Table:

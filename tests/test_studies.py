@@ -210,8 +210,11 @@ def test_other_study_directory_is_refused_unless_forced(
 
 
 def test_unreachable_scheduler_fails_fast(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    from otmm_qp.studies import execute
+
+    monkeypatch.setattr(execute, "CONNECT_TIMEOUT", 3.0)  # the default is 10 s
     path = _write(tmp_path, TINY)
     tic = time.monotonic()
     status = main(
@@ -228,7 +231,7 @@ def test_unreachable_scheduler_fails_fast(
     elapsed = time.monotonic() - tic
     err = capsys.readouterr().err
     assert status == 2 and "--scheduler: cannot reach" in err and err.count("\n") == 1
-    assert elapsed < 20.0
+    assert elapsed < 10.0
 
 
 def test_load_study_errors_name_the_file(tmp_path: Path) -> None:

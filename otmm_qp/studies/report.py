@@ -136,6 +136,25 @@ def success_table(
     return lines, rates
 
 
+def generator_table(rows: Rows) -> list[str]:
+    """Markdown table: success rate [CI] per controller (rows) and robot/generator (columns)."""
+    groups = list(dict.fromkeys((r["robot"], r["generator"]) for r in rows.rows))
+    lines = [
+        "| controller | " + " | ".join(f"{robot} {gen}" for robot, gen in groups) + " |",
+        "|---|" + "---|" * len(groups),
+    ]
+    for name in rows.controllers():
+        cells = []
+        for robot, gen in groups:
+            selected = rows.select(controller=name, robot=robot, generator=gen)
+            wins = sum(1 for r in selected if r["success"])
+            low, high = wilson_interval(wins, len(selected))
+            rate = 100 * wins / len(selected) if selected else math.nan
+            cells.append(f"{rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, tuple[float, float, float]]:
     """``controller → (median, low, high)`` of ``metric`` on ``robot``."""
     return {
@@ -234,6 +253,12 @@ def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> 
     out.append("")
     lines, _ = success_table(rows, None)
     out += ["## All robots", "", *lines, ""]
+    out += [
+        "## Success rate by robot and generator (95 % Wilson CI)",
+        "",
+        *generator_table(rows),
+        "",
+    ]
     for robot in rows.robots():
         out += [f"## {robot}", ""]
         lines, rates = success_table(rows, robot)

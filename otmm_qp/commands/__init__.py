@@ -1,1 +1,1 @@
-"""Subcommands of the ``otmm-qp`` CLI, one module each (contracts §2)."""
+"""One module per ``otmm-qp`` subcommand: ``NAME``, ``HELP``, ``add_arguments``, ``run``."""

@@ -53,6 +53,15 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_KEY] = {}
     if not config.getoption("--otmm-controller"):
         return
+    # Bad --otmm-params JSON, an unknown controller or scenario: a one-line usage error now,
+    # not a collection traceback later.
+    from otmm_qp.exceptions import OtmmError
+
+    try:
+        _controllers(config)
+        _scenarios(config)
+    except OtmmError as error:
+        raise pytest.UsageError(str(error)) from None
     if config.args_source == pytest.Config.ArgsSource.ARGS:
         config.args.append(str(SUITE_FILE))
     else:

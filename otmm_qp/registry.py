@@ -34,7 +34,8 @@ FILTERS = "otmm_qp.filters"
 P_FUNCTIONS = "otmm_qp.p_functions"
 BACKENDS = "otmm_qp.backends"
 TRAJECTORIES = "otmm_qp.trajectories"
-GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES)
+TASK_GENERATORS = "otmm_qp.task_generators"
+GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS)
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,10 @@ def _base_class(group: str) -> type | None:
         from otmm_qp.trajectories.trajectory import Trajectory
 
         return Trajectory
+    if group == TASK_GENERATORS:
+        from otmm_qp.tasks.generator import TaskGenerator
+
+        return TaskGenerator
     return None
 
 

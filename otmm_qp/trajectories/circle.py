@@ -18,9 +18,13 @@ class CircleTrajectory(Trajectory):
 
     .. math::
         x_d(t) = c + r\,(\cos\phi(t)\,e_1 + \sin\phi(t)\,e_2),\qquad
-        \phi(t) = \phi_0 \mp 2\pi t/T
+        \phi(t) = \phi_0 \mp 2\pi t/T \quad(\texttt{constant}),\qquad
+        \phi(t) = \phi_0 \mp 2\pi\,\text{turns}\;s(t/T_d) \quad(\texttt{quintic})
 
-    (``−`` clockwise). ``e_1, e_2`` span the plane: the x–y plane in 2-D, or ``normal``'s
+    (``−`` clockwise), ``s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` clipped to ``[0, 1]`` and ``T_d =
+    turns·T``: the quintic profile starts and ends at rest and holds the end point after
+    ``T_d``; the constant one keeps circling (the paper's law). ``e_1, e_2`` span the plane:
+    the x–y plane in 2-D, or ``normal``'s
     orthogonal complement in 3-D. ``φ₀`` defaults to the angle of the circle point nearest
     to the start position.
 
@@ -33,6 +37,7 @@ class CircleTrajectory(Trajectory):
         start_angle: φ₀ [rad]; nearest point to ``start`` when omitted.
         normal: Plane normal for 3-D circles (default +z).
         turns: Number of turns making up the natural duration.
+        profile: ``constant`` (the paper's law, default) or ``quintic`` (smooth start and stop).
     """
 
     name = "circle"
@@ -47,7 +52,12 @@ class CircleTrajectory(Trajectory):
         start_angle: float | None = None,
         normal: Sequence[float] | None = None,
         turns: float = 1.0,
+        profile: Literal["constant", "quintic"] = "constant",
     ) -> None:
+        if profile not in ("constant", "quintic"):
+            raise ParameterError("profile", f"must be constant or quintic, got {profile!r}")
+        self.profile = profile
+        self.turns = float(turns)
         self.centre = np.asarray(centre, dtype=float)
         dim = self.centre.size
         if dim not in (2, 3):
@@ -88,8 +98,15 @@ class CircleTrajectory(Trajectory):
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Position [m] and velocity [m/s] on the circle at ``t`` [s]."""
-        rate = self.sign * 2.0 * math.pi / self.period  # [rad/s]
-        phi = self.start_angle + rate * t
+        if self.profile == "quintic":
+            tau = min(max(t / self.duration, 0.0), 1.0)
+            sweep = self.sign * 2.0 * math.pi * self.turns  # [rad]
+            phi = self.start_angle + sweep * tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+            moving = 0.0 <= t <= self.duration
+            rate = sweep * 30.0 * tau**2 * (1.0 - tau) ** 2 / self.duration if moving else 0.0
+        else:
+            rate = self.sign * 2.0 * math.pi / self.period  # [rad/s]
+            phi = self.start_angle + rate * t
         c, s = math.cos(phi), math.sin(phi)
         r, v = self.radius, self.radius * rate
         return self.centre + (r * c) * self.e1 + (r * s) * self.e2, (v * c) * self.e2 - (

@@ -186,8 +186,10 @@ class PoseCircleTrajectory(Trajectory):
         p(t) = c + r(\cos\phi\,e_1 + \sin\phi\,e_2),\qquad
         R(t) = R_0\exp(\tfrac{t}{T}\log(R_0^\top R_1)),\quad T = \text{turns}\cdot\text{period}
 
-    The orientation moves at constant angular velocity over the natural duration ``T`` and is
-    held afterwards (fixed at the start orientation without a target).
+    Position and orientation share one time law over the natural duration ``T``: ``quintic``
+    (default; the circle angle and the slerp parameter follow ``s = 10τ³ − 15τ⁴ + 6τ⁵``, so
+    the motion starts and ends at rest) or ``constant`` (constant speed, a velocity jump at
+    ``t = 0``). After ``T`` the end pose is held (position and orientation).
 
     Args:
         start: Start pose, shape ``(4, 4)``.
@@ -200,6 +202,7 @@ class PoseCircleTrajectory(Trajectory):
         turns: Number of turns in the natural duration.
         end_rpy: End orientation ``[roll, pitch, yaw]`` [rad].
         end_quaternion: End orientation ``[x, y, z, w]``.
+        profile: ``quintic`` (smooth start and stop, default) or ``constant``.
     """
 
     name = "pose_circle"
@@ -216,20 +219,27 @@ class PoseCircleTrajectory(Trajectory):
         turns: float = 1.0,
         end_rpy: Sequence[float] | None = None,
         end_quaternion: Sequence[float] | None = None,
+        profile: Profile = "quintic",
     ) -> None:
         pose = _start_pose(start)
         if np.shape(centre) != (3,):
             raise DimensionError("centre", (3,), np.shape(centre))
+        if profile not in ("quintic", "constant"):
+            raise ParameterError("profile", f"must be quintic or constant, got {profile!r}")
+        self.profile = profile
         self.circle = CircleTrajectory(
-            pose, centre, radius, period, direction, start_angle, normal, turns
+            pose, centre, radius, period, direction, start_angle, normal, turns, profile
         )
         self.duration = self.circle.duration
         self.orientation = _Orientation(pose[:3, :3], end_rpy, end_quaternion)
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Pose ``(4, 4)`` and twist ``(6,)`` [m/s, rad/s] at ``t`` [s]."""
-        position, velocity = self.circle.sample(t)
-        s, ds = _time_law(t, self.duration, "constant")
+        held = min(t, self.duration)  # the end pose is held after T
+        position, velocity = self.circle.sample(held)
+        if t > self.duration:
+            velocity = 0.0 * velocity
+        s, ds = _time_law(t, self.duration, self.profile)
         pose = np.eye(4)
         twist = np.empty(6)
         pose[:3, 3] = position

@@ -1,0 +1,1 @@
+"""Studies: random tasks × controllers on Dask, stored as Parquet, reported with intervals."""

@@ -1,0 +1,232 @@
+"""Run units of work (tasks × controllers × loop modes) and turn each episode into one row.
+
+This module is what a worker process executes: it rebuilds robots and generators once per
+process (cached by their spec) and never raises for one bad episode — a failure becomes a
+row with ``status = "error"`` and the one-line message.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from otmm_qp import registry
+from otmm_qp.config.schema import ControllerConfig
+from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
+from otmm_qp.robots.robot import Robot
+from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
+from otmm_qp.tasks.generator import Task, TaskGenerator
+
+#: Metrics that measure wall-clock time: they differ between runs and executors.
+TIMING_METRICS = ("step_time_median_us", "step_time_p99_us")
+
+_configs: dict[str, tuple[StudyConfig, list[ControllerConfig]]] = {}
+_robots: dict[str, Robot] = {}
+_generators: dict[str, TaskGenerator] = {}
+
+
+@dataclass(frozen=True)
+class WorkUnit:
+    """One task and the episodes still to run on it.
+
+    Attributes:
+        robot: Robot index in the study.
+        generator: Generator index.
+        task_index: Index of the task within its generator.
+        seed: Task seed.
+        episodes: ``(key, controller index, loop mode)`` of each episode to run.
+        time_series: Also return sampled time series.
+    """
+
+    robot: int
+    generator: int
+    task_index: int
+    seed: int
+    episodes: tuple[tuple[str, int, str], ...]
+    time_series: bool = False
+
+
+@dataclass
+class ChunkResult:
+    """Episode rows of a chunk, sampled time series and the chunk's compute time [s].
+
+    Each time series is one dict of columns.
+    """
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    series: list[dict[str, Any]] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _study(payload: dict[str, Any]) -> tuple[StudyConfig, list[ControllerConfig]]:
+    digest = str(payload["digest"])
+    if digest not in _configs:
+        config = StudyConfig.model_validate(payload["config"])
+        controllers = [ControllerConfig.model_validate(c) for c in payload["controllers"]]
+        _configs[digest] = (config, controllers)
+    return _configs[digest]
+
+
+def _robot(config: StudyConfig, index: int) -> Robot:
+    spec = config.robots[index]
+    key = json.dumps(spec.robot.model_dump(mode="json"), sort_keys=True)
+    if key not in _robots:
+        _robots[key] = registry.create(
+            registry.ROBOTS, spec.robot.type, spec.robot.params, f"robots.{index}.robot"
+        )
+    return _robots[key]
+
+
+def _generator(config: StudyConfig, index: int) -> TaskGenerator:
+    spec = config.generators[index]
+    key = json.dumps({"type": spec.type, **spec.params}, sort_keys=True, default=str)
+    if key not in _generators:
+        _generators[key] = registry.create(
+            registry.TASK_GENERATORS, spec.type, spec.params, f"generators.{index}"
+        )
+    return _generators[key]
+
+
+def one_line(error: BaseException) -> str:
+    """``Type: message`` on one line."""
+    text = " ".join(str(error).split())
+    return f"{type(error).__name__}: {text}" if text else type(error).__name__
+
+
+def is_success(metrics: dict[str, Any], criteria: SuccessCriteria) -> bool:
+    """Whether a completed episode's metrics meet every criterion."""
+    if not metrics.get("completed"):
+        return False
+    checks = [
+        (criteria.max_position_error, "max_error"),
+        (criteria.max_orientation_error, "max_orientation_error"),
+        (criteria.max_joint_speed, "max_joint_speed"),
+    ]
+    for bound, name in checks:
+        value = metrics.get(name)
+        if bound is None or value is None or (isinstance(value, float) and math.isnan(value)):
+            continue
+        if not float(value) <= bound:
+            return False
+    if criteria.no_limit_violation and int(metrics.get("position_violations") or 0) > 0:
+        return False
+    return not (criteria.no_blow_up and bool(metrics.get("blow_up")))
+
+
+def _base_row(
+    config: StudyConfig,
+    controllers: list[ControllerConfig],
+    unit: WorkUnit,
+    key: str,
+    controller: int,
+    mode: str,
+) -> dict[str, Any]:
+    spec = controllers[controller]
+    gen = config.generators[unit.generator]
+    params = {
+        **{f"{f.type}.{k}": v for f in spec.filters for k, v in f.params.items()},
+        **{f"{spec.backend.type}.{k}": v for k, v in spec.backend.params.items()},
+    }
+    return {
+        "study": config.name,
+        "episode_key": key,
+        "robot": config.robots[unit.robot].name,
+        "generator": gen.type,
+        "generator_params": json.dumps(gen.params, sort_keys=True, default=str),
+        "task_index": unit.task_index,
+        "task_seed": unit.seed,
+        "controller": spec.name,
+        "filters": "+".join(f.type for f in spec.filters) or "none",
+        "backend": spec.backend.type,
+        "controller_params": json.dumps(params, sort_keys=True, default=str),
+        "loop_mode": mode,
+        "dt": config.dt,
+    }
+
+
+def _series(run: RunResult, key: str, stride: int) -> dict[str, Any]:
+    picked = slice(None, None, stride)
+    speed = np.max(np.abs(run.qdot), axis=1) if run.steps else np.zeros(0)
+    return {
+        "episode_key": [key] * len(run.t[picked]),
+        "t": run.t[picked].tolist(),
+        "position_error": run.position_error[picked].tolist(),
+        "joint_speed": speed[picked].tolist(),
+        "sigma_min": run.sigma_min[picked].tolist(),
+        "p": run.p[picked].tolist(),
+    }
+
+
+def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
+    """Generate the unit's task and run its episodes, appending rows (never raising)."""
+    from otmm_qp.runner.build import build_controller
+    from otmm_qp.simulation.simulate import simulate
+
+    config, controllers = _study(payload)
+    settings = MetricSettings(**config.metrics.model_dump())
+    task: Task | None = None
+    task_error: str | None = None
+    robot: Robot | None = None
+    weight = None
+    try:
+        robot = _robot(config, unit.robot)
+        spec = config.robots[unit.robot]
+        weight = np.asarray(spec.task_weight, dtype=float) if spec.task_weight else None
+        task = _generator(config, unit.generator).generate(robot, unit.seed, weight)
+    except Exception as error:  # noqa: BLE001 - a failed task is a row, never a stopped study
+        task_error = f"task generation: {one_line(error)}"
+    for key, controller, mode in unit.episodes:
+        row = _base_row(config, controllers, unit, key, controller, mode)
+        if task is not None:
+            row.update({f"task.{k}": v for k, v in task.descriptors.items()})
+        if task is None or robot is None:
+            row.update(status="error", error_message=task_error, success=False)
+            result.rows.append(row)
+            continue
+        duration = task.duration + config.duration.extra
+        if config.duration.max is not None:
+            duration = min(duration, config.duration.max)
+        row["duration"] = duration
+        try:
+            built = build_controller(controllers[controller], f"controllers.{controller}")
+            q0 = robot.check_start(task.q0)
+            run = simulate(
+                robot,
+                built,
+                task.trajectory,
+                q0,
+                config.dt,
+                duration,
+                loop_mode=mode,  # type: ignore[arg-type]
+                clik_gain=config.clik_gain,
+                task_weight=weight,
+                experiment=config.name,
+            )
+            metrics = compute_metrics(run, settings)
+        except Exception as error:  # noqa: BLE001 - recorded in the row
+            row.update(status="error", error_message=one_line(error), success=False)
+            result.rows.append(row)
+            continue
+        row.update({name: metrics.get(name) for name in METRIC_NAMES})
+        row["status"] = "ok" if run.error_message is None else "stopped"
+        row["error_message"] = run.error_message
+        row["success"] = is_success(metrics, config.success)
+        result.rows.append(row)
+        if unit.time_series:
+            result.series.append(_series(run, key, config.time_series.stride))
+
+
+def run_chunk(payload: dict[str, Any], units: list[WorkUnit]) -> ChunkResult:
+    """Run every unit of a chunk (the function a Dask worker executes)."""
+    tic = time.perf_counter()
+    result = ChunkResult()
+    for unit in units:
+        run_unit(payload, unit, result)
+    result.seconds = time.perf_counter() - tic
+    return result

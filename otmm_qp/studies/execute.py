@@ -1,0 +1,262 @@
+"""Run a study in-process, on an embedded Dask ``LocalCluster`` or on an existing scheduler.
+
+``workers=1`` runs without Dask; results stream into the Parquet dataset chunk by chunk.
+
+The driver alone writes the dataset. A chunk's rows are written once, when its future
+completes; Dask re-runs the chunk of a worker that dies, and the driver still receives one
+result per chunk, so every episode is stored exactly once.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from otmm_qp.exceptions import OtmmError
+from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
+from otmm_qp.studies.spec import StudyPlan
+from otmm_qp.studies.storage import PartWriter, prepare_directory, stored_keys, write_marker
+
+#: Seconds allowed to connect to an external scheduler.
+CONNECT_TIMEOUT = 10.0
+
+
+class SchedulerUnreachable(OtmmError):
+    """The Dask scheduler address cannot be reached."""
+
+
+@dataclass
+class StudyOutcome:
+    """What a study run did.
+
+    Attributes:
+        total: Episodes in the study.
+        skipped_stored: Episodes already in the dataset (not rerun).
+        ran: Episodes run and stored now.
+        failed: Of those, episodes with ``status != "ok"``.
+        steps: Control steps simulated now.
+        seconds: Wall time of the run [s].
+        compute_seconds: Sum of the chunks' compute times on their workers [s].
+        interrupted: Stopped by Ctrl-C / SIGTERM.
+    """
+
+    total: int
+    skipped_stored: int
+    ran: int = 0
+    failed: int = 0
+    steps: int = 0
+    seconds: float = 0.0
+    compute_seconds: float = 0.0
+    interrupted: bool = False
+
+
+def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
+    """Group the missing episodes by task, then tasks into chunks of ``chunk_size``.
+
+    Tasks are ordered by index first (round-robin over robots and generators).
+    """
+    config = plan.config
+    by_task: dict[tuple[int, int, int], list[tuple[str, int, str]]] = {}
+    seeds: dict[tuple[int, int, int], int] = {}
+    for episode in plan.episodes:
+        if episode.key in done:
+            continue
+        task = (episode.robot, episode.generator, episode.task_index)
+        by_task.setdefault(task, []).append((episode.key, episode.controller, episode.loop_mode))
+        seeds[task] = episode.seed
+    units = [
+        WorkUnit(
+            task[0],
+            task[1],
+            task[2],
+            seeds[task],
+            tuple(episodes),
+            time_series=task[2] < config.time_series.tasks,
+        )
+        for task, episodes in by_task.items()
+    ]
+    # Round-robin over robots and generators, so a partial dataset covers all of them.
+    units.sort(key=lambda u: (u.task_index, u.robot, u.generator))
+    size = config.chunk_size
+    return [units[i : i + size] for i in range(0, len(units), size)]
+
+
+def payload_of(plan: StudyPlan) -> dict[str, Any]:
+    """Payload sent with each chunk (config + controllers + a digest for worker caches)."""
+    payload = plan.payload()
+    text = json.dumps(payload, sort_keys=True, default=str)
+    payload["digest"] = hashlib.sha256(text.encode()).hexdigest()
+    return payload
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt so both leave a readable dataset."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+ProgressHook = Callable[[int, int], None]
+
+
+def _serial(payload: dict[str, Any], chunks: list[list[WorkUnit]]) -> Iterator[ChunkResult]:
+    for chunk in chunks:
+        yield run_chunk(payload, chunk)
+
+
+@contextmanager
+def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
+    """A Dask client: to ``scheduler`` or to a fresh ``LocalCluster`` of ``workers`` processes.
+
+    Raises:
+        SchedulerUnreachable: No scheduler answers at ``scheduler`` within
+            :data:`CONNECT_TIMEOUT`.
+    """
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            with dask.config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT}s"}):
+                client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError) as error:
+            raise SchedulerUnreachable(
+                f"--scheduler: cannot reach a Dask scheduler at {scheduler!r} within "
+                f"{CONNECT_TIMEOUT:g} s ({type(error).__name__})"
+            ) from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    cluster = LocalCluster(
+        n_workers=workers or os.cpu_count() or 1,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",  # never the shared default 8787
+        silence_logs=50,
+    )
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _distributed(
+    client: Any, payload: dict[str, Any], chunks: list[list[WorkUnit]]
+) -> Iterator[ChunkResult]:
+    from distributed import as_completed
+
+    shared = client.scatter(payload, broadcast=True)
+    futures = [
+        client.submit(
+            run_chunk, shared, chunk, pure=False, retries=3, key=f"chunk-{i}-{time.time_ns()}"
+        )
+        for i, chunk in enumerate(chunks)
+    ]
+    try:
+        for future in as_completed(futures):
+            yield future.result()
+    finally:
+        client.cancel(futures)
+
+
+def run_study(
+    plan: StudyPlan,
+    out: Path,
+    source: str,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    force: bool = False,
+    progress: ProgressHook | None = None,
+    client: Any = None,
+) -> StudyOutcome:
+    """Run the episodes of ``plan`` not yet stored in ``out``.
+
+    Args:
+        plan: The validated study.
+        out: Output directory.
+        source: Study file (recorded in ``study.json``).
+        workers: Worker processes; 1 runs in this process without Dask; None = cores.
+        scheduler: Address of an existing Dask scheduler (``tcp://host:port``).
+        force: Replace the dataset of another study in ``out``.
+        progress: Called with ``(episodes finished now, failures now)`` after each chunk.
+        client: An open Dask client to use instead of starting one (benchmarks reuse one).
+
+    Returns:
+        The outcome; an interrupt (Ctrl-C, SIGTERM) returns with ``interrupted = True``
+        after every finished chunk is stored.
+    """
+    config = plan.config
+    prepare_directory(out, config.name, force)
+    done = stored_keys(out)
+    keys = {e.key for e in plan.episodes}
+    already = len(keys & done)
+    write_marker(
+        out,
+        {
+            "study": config.name,
+            "source": source,
+            "config": config.model_dump(mode="json"),
+            "controllers": [c.name for c in plan.controllers],
+            "skipped_controllers": [{"name": n, "reason": r} for n, r in plan.skipped],
+            "episodes": len(plan.episodes),
+        },
+    )
+    outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=already)
+    chunks = make_chunks(plan, done)
+    payload = payload_of(plan)
+    writer = PartWriter(out)
+    written: set[str] = set(done)
+    tic = time.perf_counter()
+
+    def consume(results: Iterator[ChunkResult]) -> None:
+        for result in results:
+            rows = [r for r in result.rows if r["episode_key"] not in written]
+            written.update(r["episode_key"] for r in rows)
+            fresh = {r["episode_key"] for r in rows}
+            series = [s for s in result.series if s["episode_key"] and s["episode_key"][0] in fresh]
+            writer.write(rows, series)
+            failed = sum(1 for r in rows if r.get("status") != "ok")
+            outcome.ran += len(rows)
+            outcome.compute_seconds += result.seconds
+            outcome.failed += failed
+            outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
+            if progress is not None:
+                progress(len(rows), failed)
+
+    with _sigterm_as_interrupt():
+        try:
+            if client is not None:
+                consume(_distributed(client, payload, chunks))
+            elif scheduler is None and workers == 1:
+                consume(_serial(payload, chunks))
+            elif chunks or scheduler is not None:
+                with dask_client(workers, scheduler) as client:
+                    consume(_distributed(client, payload, chunks))
+        except KeyboardInterrupt:
+            outcome.interrupted = True
+    outcome.seconds = time.perf_counter() - tic
+    return outcome

@@ -1,0 +1,298 @@
+"""Load a study file, expand controller grids and enumerate its episodes (each with a key).
+
+An *episode* is one (robot, generator, task index, controller, loop mode). Its key is the
+SHA-256 of the JSON of everything that determines its numbers, so ``--resume`` recognises
+stored episodes and a changed setting makes a new episode.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from pydantic import ValidationError
+
+from otmm_qp import registry
+from otmm_qp.config.schema import ControllerConfig, PluginSpec
+from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
+from otmm_qp.studies.schema import StudyConfig, StudyController
+from otmm_qp.tasks.generator import TaskGenerationError, task_seed
+
+
+def _field_path(location: tuple[int | str, ...]) -> str:
+    return ".".join(str(part) for part in location)
+
+
+def parse_study(data: Any, source: str = "study") -> StudyConfig:
+    """Validate parsed YAML data.
+
+    Raises:
+        ConfigError: Naming the first offending field and what is allowed.
+    """
+    if not isinstance(data, dict):
+        raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
+    try:
+        return StudyConfig.model_validate(data)
+    except ValidationError as error:
+        first = error.errors()[0]
+        path = _field_path(tuple(first["loc"]))
+        message = first["msg"]
+        if first["type"] == "extra_forbidden":
+            message = "unknown key"
+        elif first["type"] == "literal_error":
+            message = f"{message}, got {first.get('input')!r}"
+        raise ConfigError(f"{source}: {path}" if path else source, message) from None
+
+
+def load_study(path: str | Path) -> StudyConfig:
+    """Read and validate a YAML study file.
+
+    Raises:
+        ConfigError: Missing file, malformed YAML or invalid content (one line).
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise ConfigError(str(file), "no such study file")
+    try:
+        data = yaml.safe_load(file.read_text())
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise ConfigError(str(file), f"malformed YAML{where}") from None
+    return parse_study(data, str(file))
+
+
+def _format_value(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _grid_target(spec: StudyController, key: str, field: str) -> tuple[str, int | None, str]:
+    """Which block a grid key sets: ``("backend"|"filters", index, parameter)``."""
+    parts = key.split(".")
+    if parts[0] == "backend" and len(parts) == 2:
+        return "backend", None, parts[1]
+    if parts[0] == "filters" and len(parts) == 3 and parts[1].isdigit():
+        index = int(parts[1])
+        if index >= len(spec.filters):
+            raise ConfigError(f"{field}.grid.{key}", f"controller has {len(spec.filters)} filters")
+        return "filters", index, parts[2]
+    if len(parts) != 1:
+        raise ConfigError(f"{field}.grid.{key}", "use NAME, backend.NAME or filters.INDEX.NAME")
+    owners: list[tuple[str, int | None]] = []
+    blocks: list[tuple[str, int | None, PluginSpec, str]] = [
+        ("filters", j, f, registry.FILTERS) for j, f in enumerate(spec.filters)
+    ]
+    blocks.append(("backend", None, spec.backend, registry.BACKENDS))
+    for kind, position, block, group in blocks:
+        try:
+            registry.check_parameters(registry.load(group, block.type), {key: None}, "")
+        except ConfigError:
+            continue
+        except OtmmError:
+            continue
+        owners.append((kind, position))
+    if not owners:
+        raise ConfigError(f"{field}.grid.{key}", "unknown parameter for every block")
+    if len(owners) > 1:
+        raise ConfigError(
+            f"{field}.grid.{key}", "accepted by several blocks; use backend.NAME or filters.I.NAME"
+        )
+    return owners[0][0], owners[0][1], key
+
+
+def expand_controllers(config: StudyConfig, source: str = "study") -> list[ControllerConfig]:
+    """One :class:`ControllerConfig` per grid combination, named ``name[k=v,...]``.
+
+    Raises:
+        ConfigError: Empty grid axis, grid key no block accepts, or duplicate names.
+    """
+    expanded: list[ControllerConfig] = []
+    for i, spec in enumerate(config.controllers):
+        field = f"{source}: controllers.{i}"
+        for key, values in spec.grid.items():
+            if not values:
+                raise ConfigError(f"{field}.grid.{key}", "empty list: expands to zero controllers")
+        targets = {key: _grid_target(spec, key, field) for key in spec.grid}
+        keys = list(spec.grid)
+        for combination in itertools.product(*(spec.grid[k] for k in keys)):
+            filters = [dict(f.params, type=f.type) for f in spec.filters]
+            backend = dict(spec.backend.params, type=spec.backend.type)
+            for key, value in zip(keys, combination, strict=True):
+                kind, index, name = targets[key]
+                block = backend if kind == "backend" else filters[index or 0]
+                block[name] = value
+            label = spec.name
+            if keys:
+                label += (
+                    "["
+                    + ",".join(
+                        f"{k.rsplit('.', 1)[-1]}={_format_value(v)}"
+                        for k, v in zip(keys, combination, strict=True)
+                    )
+                    + "]"
+                )
+            expanded.append(
+                ControllerConfig.model_validate(
+                    {"name": label, "filters": filters, "backend": backend}
+                )
+            )
+    names = [c.name for c in expanded]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ConfigError(
+            f"{source}: controllers", f"grid expands to duplicate names: {', '.join(duplicates)}"
+        )
+    return expanded
+
+
+def controller_record(config: ControllerConfig) -> dict[str, Any]:
+    """JSON-ready record of a controller (name, filters, backend with parameters)."""
+    return {
+        "name": config.name,
+        "filters": [dict(f.params, type=f.type) for f in config.filters],
+        "backend": dict(config.backend.params, type=config.backend.type),
+    }
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode: indices into the study's robots, generators, controllers and loop modes."""
+
+    key: str
+    robot: int
+    generator: int
+    task_index: int
+    seed: int
+    controller: int
+    loop_mode: str
+
+
+@dataclass
+class StudyPlan:
+    """A validated study ready to run.
+
+    Attributes:
+        config: The study record.
+        controllers: Expanded controllers (available ones only).
+        skipped: ``(name, reason)`` of controllers whose peer library is missing.
+        episodes: Every episode in a fixed order.
+    """
+
+    config: StudyConfig
+    controllers: list[ControllerConfig]
+    skipped: list[tuple[str, str]]
+    episodes: list[Episode]
+
+    def payload(self) -> dict[str, Any]:
+        """JSON-ready description the workers rebuild everything from."""
+        return {
+            "config": self.config.model_dump(mode="json"),
+            "controllers": [controller_record(c) for c in self.controllers],
+        }
+
+
+def _digest(record: Any) -> str:
+    text = json.dumps(record, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def episode_key(
+    config: StudyConfig,
+    robot: int,
+    generator: int,
+    index: int,
+    controller: dict[str, Any],
+    loop_mode: str,
+) -> str:
+    """Hash of the episode's full spec (robot, task, controller, loop, numerics, metrics)."""
+    robot_spec = config.robots[robot]
+    gen = config.generators[generator]
+    record = {
+        "robot": robot_spec.model_dump(mode="json"),
+        "generator": {"type": gen.type, "params": gen.params},
+        "seed": task_seed(config.seed, robot_spec.name, gen.type, index),
+        "task_index": index,
+        "controller": controller,
+        "loop_mode": loop_mode,
+        "dt": config.dt,
+        "clik_gain": config.clik_gain,
+        "duration": config.duration.model_dump(mode="json"),
+        "metrics": config.metrics.model_dump(mode="json"),
+    }
+    return _digest(record)
+
+
+def check_plugins(
+    config: StudyConfig, controllers: list[ControllerConfig], source: str
+) -> list[tuple[str, str]]:
+    """Build every robot, generator and controller once so bad input fails before any work.
+
+    Returns:
+        ``(name, reason)`` of controllers skipped because their peer library is missing.
+
+    Raises:
+        ConfigError: Unknown plugin or parameter, with its path.
+    """
+    from otmm_qp.runner.build import build_controller
+
+    for i, robot in enumerate(config.robots):
+        built = registry.create(
+            registry.ROBOTS, robot.robot.type, robot.robot.params, f"{source}: robots.{i}.robot"
+        )
+        if robot.task_weight is not None and len(robot.task_weight) != built.task_dim:
+            raise ConfigError(
+                f"{source}: robots.{i}.task_weight",
+                f"expected {built.task_dim} weights, got {len(robot.task_weight)}",
+            )
+    for j, gen in enumerate(config.generators):
+        registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
+    for i, robot_spec in enumerate(config.robots):
+        robot = registry.create(
+            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
+        )
+        weight = np.asarray(robot_spec.task_weight, dtype=float) if robot_spec.task_weight else None
+        for j, gen in enumerate(config.generators):
+            generator = registry.create(registry.TASK_GENERATORS, gen.type, gen.params, "")
+            seed = task_seed(config.seed, robot_spec.name, gen.type, 0)
+            try:  # the first task: a generator that cannot work on this robot fails here
+                generator.generate(robot, seed, weight)
+            except TaskGenerationError as error:
+                raise ConfigError(f"{source}: generators.{j} ({gen.type})", str(error)) from None
+    skipped: list[tuple[str, str]] = []
+    for k, controller in enumerate(controllers):
+        try:
+            build_controller(controller, f"{source}: controllers.{k} ({controller.name})")
+        except PeerUnavailable as error:
+            skipped.append((controller.name, str(error)))
+    return skipped
+
+
+def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
+    """Expand, check and enumerate a study.
+
+    Raises:
+        ConfigError: Any bad input, one line naming the field.
+    """
+    controllers = expand_controllers(config, source)
+    skipped = check_plugins(config, controllers, source)
+    skipped_names = {name for name, _ in skipped}
+    controllers = [c for c in controllers if c.name not in skipped_names]
+    if not controllers:
+        raise ConfigError(f"{source}: controllers", "no controller is available to run")
+    records = [controller_record(c) for c in controllers]
+    episodes: list[Episode] = []
+    for r, robot in enumerate(config.robots):
+        for g, gen in enumerate(config.generators):
+            for index in range(gen.count):
+                seed = task_seed(config.seed, robot.name, gen.type, index)
+                for c, record in enumerate(records):
+                    for mode in config.loop_modes:
+                        key = episode_key(config, r, g, index, record, mode)
+                        episodes.append(Episode(key, r, g, index, seed, c, mode))
+    return StudyPlan(config, controllers, skipped, episodes)

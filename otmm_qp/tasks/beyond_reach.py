@@ -1,0 +1,70 @@
+"""``beyond_reach``: out to a target past the workspace boundary and back."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.tasks.generator import Task, TaskGenerator, check_range, draw
+from otmm_qp.tasks.search import (
+    base_position,
+    position_of,
+    random_coordinates,
+    reach_radius,
+    sigma_min_at,
+)
+from otmm_qp.trajectories.waypoints import WaypointsTrajectory
+
+
+class BeyondReachGenerator(TaskGenerator):
+    r"""From a random start ``p_0`` out to ``b + ρ R (p_0 − b)/‖p_0 − b‖`` and back.
+
+    ``b`` is the first joint's origin, ``R`` the robot's reach bound (no configuration gets
+    farther than ``R`` from ``b``) and ``ρ > 1`` the drawn overshoot, so the target is never
+    reachable. Pose tasks keep the start orientation.
+
+    Descriptors: ``overshoot`` ρ, ``target_distance`` ``ρR`` [m], ``sigma_min_start``.
+
+    Args:
+        overshoot: ``[low, high]`` of ρ (> 1).
+        duration: ``[low, high]`` of the out-and-back time [s].
+    """
+
+    name = "beyond_reach"
+
+    def __init__(
+        self, overshoot: Sequence[float] = (1.02, 1.2), duration: Sequence[float] = (2.0, 3.0)
+    ) -> None:
+        self.overshoot = check_range("overshoot", overshoot, lower=1.0)
+        if not self.overshoot[0] > 1.0:
+            raise ParameterError("overshoot", f"must be > 1, got {list(overshoot)}")
+        self.duration = check_range("duration", duration)
+        if not self.duration[0] > 0.0:
+            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+
+    def generate(self, robot: Robot, seed: int, task_weight: FloatArray | None = None) -> Task:
+        """Draw the task of ``seed`` (see the class docstring)."""
+        rng = np.random.default_rng(seed)
+        q0 = random_coordinates(robot, rng)
+        start = robot.forward(robot.configuration(q0))
+        p0 = position_of(start)
+        base = base_position(robot)
+        outward = p0 - base
+        if float(np.linalg.norm(outward)) < 1e-9:
+            outward = np.eye(p0.size)[0]
+        outward /= np.linalg.norm(outward)
+        rho = draw(rng, self.overshoot)
+        distance = rho * reach_radius(robot)
+        target = base + distance * outward
+        trajectory = WaypointsTrajectory(
+            start, [list(target)], duration=draw(rng, self.duration), return_to_start=True
+        )
+        descriptors: dict[str, float | int | str] = {
+            "overshoot": rho,
+            "target_distance": distance,
+            "sigma_min_start": sigma_min_at(robot, q0, task_weight),
+        }
+        return Task(q0, trajectory, trajectory.duration, descriptors)

@@ -91,7 +91,7 @@ def _frame_matching(arm: Any, run: StoredRun, rows: Sequence[int]) -> str | None
         pin.framesForwardKinematics(model, data, arm.configuration(run.q[k]))
         points = np.array([data.oMf[i].translation for i in range(model.nframes)])
         worst = np.maximum(worst, np.linalg.norm(points - run.position[k], axis=1))
-    matching = [str(model.frames[i].name) for i in np.flatnonzero(worst <= MATCH_TOLERANCE)]
+    matching = [str(model.frames[int(i)].name) for i in np.flatnonzero(worst <= MATCH_TOLERANCE)]
     if not matching:
         return None
     return arm.frame_name if arm.frame_name in matching else matching[-1]

@@ -39,6 +39,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--no-figures", action="store_true", help="same as --figures none")
     run.add_argument("--quiet", action="store_true", help="no progress lines")
+    run.add_argument(
+        "--replay", action="store_true", help="also write replays (see 'otmm-qp replay')"
+    )
     commands.add_parser(
         "list", help="list registered robots, filters, p-functions, backends, trajectories"
     )
@@ -46,6 +49,14 @@ def _parser() -> argparse.ArgumentParser:
         "report", help="write report.html and report.md for a results folder"
     )
     report.add_argument("results", type=Path)
+    report.add_argument(
+        "--replay", action="store_true", help="also write replays (see 'otmm-qp replay')"
+    )
+    from otmm_qp.commands import replay as replay_command
+
+    replay_command.add_arguments(
+        commands.add_parser(replay_command.NAME, help=replay_command.HELP)
+    )
     bench = commands.add_parser("bench", help="time one control step of each pipeline")
     bench.add_argument("--out", type=Path, default=Path("results/bench"))
     bench.add_argument("--steps", type=int, default=300)
@@ -53,7 +64,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def command_run(
-    config: str | None, out: Path | None, figures: bool, per_run: bool, quiet: bool
+    config: str | None,
+    out: Path | None,
+    figures: bool,
+    per_run: bool,
+    quiet: bool,
+    replay: bool = False,
 ) -> int:
     """Run a config (the embedded paper reproduction by default)."""
     from otmm_qp.runner.run import prepare_suite, run_suite
@@ -76,6 +92,18 @@ def command_run(
         from otmm_qp.output.claims import judge_paper_claims, write_claims
 
         write_claims(judge_paper_claims(outcome), out_dir / "claims.md")
+    replay_error: OtmmError | None = None
+    if replay:
+        from otmm_qp.replay import write_replays
+        from otmm_qp.replay.robot_model import record_robots
+
+        record_robots(
+            out_dir, {p.config.name: (p.config.robot.type, p.config.robot.params) for p in prepared}
+        )
+        try:
+            write_replays(out_dir)
+        except OtmmError as error:  # the runs are stored; still write the report
+            replay_error = error
     from otmm_qp.output.report import write_report
 
     report_html, _ = write_report(out_dir)
@@ -86,6 +114,8 @@ def command_run(
     if suite.claims == "paper":
         print(f"  claims:  {out_dir / 'claims.md'}")
     print(f"  report:  {report_html}")
+    if replay_error is not None:
+        raise replay_error
     if outcome.errors:
         for message in outcome.errors:
             print(f"otmm-qp: error: {message}", file=sys.stderr)
@@ -116,15 +146,24 @@ def main(argv: Sequence[str] | None = None) -> int:
                 figures != "none",
                 figures == "all",
                 getattr(args, "quiet", False),
+                getattr(args, "replay", False),
             )
         if args.command == "list":
             return command_list()
         if args.command == "report":
             from otmm_qp.output.report import write_report
 
+            if args.replay:
+                from otmm_qp.replay import write_replays
+
+                write_replays(args.results)
             html, markdown = write_report(args.results)
             print(f"report: {html}\n        {markdown}")
             return 0
+        if args.command == "replay":
+            from otmm_qp.commands import replay as replay_command
+
+            return replay_command.run(args)
         if args.command == "bench":
             from otmm_qp.bench import run_bench
 

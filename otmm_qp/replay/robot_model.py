@@ -154,3 +154,25 @@ def joint_configuration(robot: Robot, coordinates: FloatArray) -> FloatArray:
     if convert is None:
         return np.asarray(coordinates, dtype=float)
     return np.asarray(convert(np.asarray(coordinates, dtype=float)))
+
+
+def record_robots(results_dir: Path, robots: dict[str, tuple[str, dict[str, Any]]]) -> list[Path]:
+    """Write ``robot.json`` into the folder of each experiment's stored runs.
+
+    Args:
+        results_dir: The results folder.
+        robots: Experiment display name → ``(robot type, params)`` (the config's robot block).
+
+    Returns:
+        The files written (experiments without stored runs are skipped).
+    """
+    from otmm_qp.replay.stored_runs import discover_runs
+
+    folders: dict[str, Path] = {}
+    for run in discover_runs(results_dir):
+        folders.setdefault(run.experiment, run.path.parent.parent)
+    return [
+        write_robot_record(folders[name], robot_type, params)
+        for name, (robot_type, params) in robots.items()
+        if name in folders
+    ]

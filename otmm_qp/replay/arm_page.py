@@ -297,7 +297,7 @@ async function main() {
   frames = new Float32Array(raw.buffer, raw.byteOffset, raw.byteLength / 4);
   collectMaterials();
   const target = zup(META.target);
-  const eye = new THREE.Vector3(0.62, 0.45, 0.64).normalize().multiplyScalar(META.distance).add(target);
+  const eye = new THREE.Vector3(0.55, 0.62, 0.7).normalize().multiplyScalar(META.distance).add(target);
   viewer.set_property(["Cameras", "default", "rotated", "<object>"], "position", [eye.x, eye.y, eye.z]);
   viewer.controls.target.copy(target); viewer.controls.update();
   const sel = document.getElementById("controller");

@@ -82,27 +82,27 @@ def _primitive_model(robot: Any) -> Any:
     geometry = pin.GeometryModel()
     radius = 0.04
 
-    def segment(name: str, joint: int, frame: int, offset: FloatArray) -> None:
+    def segment(name: str, joint: int, offset: FloatArray) -> None:
         length = float(np.linalg.norm(offset))
         if length < 1e-6:
             return
         axis = offset / length
         rotation = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), axis).matrix()
         placement = pin.SE3(rotation, offset / 2.0)
-        obj = pin.GeometryObject(name, frame, joint, placement, coal.Capsule(radius, length))
+        obj = pin.GeometryObject(name, joint, placement, coal.Capsule(radius, length))
         obj.meshColor = np.array([0.75, 0.75, 0.78, 1.0])
         geometry.addGeometryObject(obj)
 
     for joint in range(1, model.njoints):
         parent = model.parents[joint]
         offset = np.asarray(model.jointPlacements[joint].translation, dtype=float)
-        segment(f"link_{joint}", parent, 0, offset)
-        sphere = pin.GeometryObject(f"joint_{joint}", 0, joint, pin.SE3.Identity(), coal.Sphere(radius * 1.3))
+        segment(f"link_{joint}", parent, offset)
+        sphere = pin.GeometryObject(f"joint_{joint}", joint, pin.SE3.Identity(), coal.Sphere(radius * 1.3))
         sphere.meshColor = np.array([0.35, 0.45, 0.6, 1.0])
         geometry.addGeometryObject(sphere)
     frame = model.frames[robot.frame_id]
     tip = np.asarray(frame.placement.translation, dtype=float)
-    segment("tool", int(frame.parentJoint), 0, tip)
+    segment("tool", int(frame.parentJoint), tip)
     return geometry
 
 

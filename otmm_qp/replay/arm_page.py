@@ -53,8 +53,9 @@ class PageResult:
 
 
 def _viewer_bundle() -> str:
-    import meshcat
+    from otmm_qp.replay.arm_scene import import_meshcat
 
+    meshcat = import_meshcat()
     bundle = Path(os.path.dirname(meshcat.__file__)) / "viewer" / "dist" / "main.min.js"
     text = bundle.read_text(encoding="utf-8")
     return text.replace("</script", "<\\/script")

@@ -24,6 +24,16 @@ _AFFINE_ENTRIES = [0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14]
 ROBOT_NODE = "robot"
 
 
+def import_meshcat() -> Any:
+    """``meshcat``, imported without the pyzmq deprecation warning its server module raises."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.geometry
+        import pinocchio.visualize  # noqa: F401  (imports meshcat's server module too)
+    return meshcat
+
+
 class RecordingWindow:
     """Stands in for meshcat's ``ViewerWindow``: keeps packed commands instead of sending them.
 
@@ -141,8 +151,7 @@ def _visual_model(robot: Any) -> tuple[Any, list[str]]:
 
 
 def _line(points: FloatArray, color: int, width: float) -> tuple[Any, Any]:
-    import meshcat.geometry as g
-
+    g = import_meshcat().geometry
     finite = points[np.all(np.isfinite(points), axis=1)]
     return (
         g.Line(g.PointsGeometry(finite.T.astype(np.float32)), g.LineBasicMaterial(color=color, linewidth=width)),
@@ -167,8 +176,8 @@ def build_arm_scene(
     Returns:
         The scene, the pinocchio visualizer (for :func:`geometry_transforms`) and its window.
     """
-    import meshcat
-    import meshcat.geometry as g
+    meshcat = import_meshcat()
+    g = meshcat.geometry
     from pinocchio.visualize import MeshcatVisualizer
 
     arm: Any = robot

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
@@ -70,7 +70,8 @@ def write_replays(
     *,
     max_frames: int | None = None,
     max_bytes: int | None = None,
-    log: TextIO | None = sys.stdout,
+    log: TextIO | None = None,
+    quiet: bool = False,
 ) -> list[Path]:
     """Write one replay per scenario (experiment × loop mode) from the stored time series.
 
@@ -80,7 +81,8 @@ def write_replays(
         controller: Only this controller.
         max_frames: Frame cap of planar GIFs (default :data:`~.planar_animation.DEFAULT_MAX_FRAMES`).
         max_bytes: Size cap [bytes]: the GIF size, or the HTML's per-frame data.
-        log: Stream for one line per replay and warnings (None: silent).
+        log: Stream for one line per replay (default: the current ``sys.stdout``).
+        quiet: No lines (warnings still go to ``sys.stderr``).
 
     Returns:
         The files written.
@@ -106,7 +108,10 @@ def write_replays(
     written: list[Path] = []
     errors: list[str] = []
     robots: dict[str, Robot] = {}
-    emit: Callable[[str], None] = (lambda text: print(text, file=log)) if log else (lambda _: None)
+    def emit(text: str) -> None:
+        if not quiet:
+            print(text, file=log if log is not None else sys.stdout)
+
     for key, group in scenarios.items():
         title = f"{key[0]} — {key[1]}" + (f" — {controller}" if controller else "")
         stem = stems[key + suffix]

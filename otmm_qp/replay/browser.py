@@ -19,11 +19,12 @@ import re
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 BROWSER_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
@@ -160,6 +161,8 @@ def chromium_page(width: int = 1000, height: int = 700, executable: str | None =
         )
         try:
             endpoint = _devtools_endpoint(process)
+            # keep draining the browser's stderr so a chatty browser never blocks on a full pipe
+            threading.Thread(target=_drain, args=(process.stderr,), daemon=True).start()
             with connect(endpoint, max_size=None, open_timeout=30) as socket:
                 target = _call(socket, 1, "Target.createTarget", url="about:blank")["targetId"]
                 session = _call(socket, 2, "Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
@@ -178,6 +181,18 @@ def chromium_page(width: int = 1000, height: int = 700, executable: str | None =
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+            if process.stderr is not None:
+                process.stderr.close()
+
+
+def _drain(stream: IO[str] | None) -> None:
+    if stream is None:
+        return
+    try:
+        for _ in stream:
+            pass
+    except (OSError, ValueError):  # closed by the owner
+        pass
 
 
 def _devtools_endpoint(process: subprocess.Popen[str]) -> str:

@@ -54,9 +54,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     from otmm_qp.commands import replay as replay_command
 
-    replay_command.add_arguments(
-        commands.add_parser(replay_command.NAME, help=replay_command.HELP)
-    )
+    replay_command.add_arguments(commands.add_parser(replay_command.NAME, help=replay_command.HELP))
     bench = commands.add_parser("bench", help="time one control step of each pipeline")
     bench.add_argument("--out", type=Path, default=Path("results/bench"))
     bench.add_argument("--steps", type=int, default=300)

@@ -26,7 +26,11 @@ experiments:
     robot: {type: pinocchio, name: ur5, task: pose}
     task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
     q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory: {type: pose_line, end: [0.6214, 0.1878, 0.3384], end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926], duration: 0.4}
+    trajectory:
+      type: pose_line
+      end: [0.6214, 0.1878, 0.3384]
+      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
+      duration: 0.4
     duration: 0.4
     controllers:
       - name: pinv
@@ -42,7 +46,9 @@ WIDTH, HEIGHT, PANEL = 900, 640, 118  # viewport and the control panel height [p
 def browser() -> Iterator[Page]:
     if find_chromium() is None:
         if os.environ.get("CI"):
-            pytest.fail("Chromium is required for the browser tests in CI (apt-get install chromium)")
+            pytest.fail(
+                "Chromium is required for the browser tests in CI (apt-get install chromium)"
+            )
         pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
     with chromium_page(WIDTH, HEIGHT) as page:
         yield page
@@ -54,7 +60,10 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = folder / "arm.yaml"
     config.write_text(ARM)
     out = folder / "results"
-    assert main(["run", str(config), "--out", str(out), "--figures", "none", "--quiet", "--replay"]) == 0
+    assert (
+        main(["run", str(config), "--out", str(out), "--figures", "none", "--quiet", "--replay"])
+        == 0
+    )
     return out
 
 
@@ -99,7 +108,10 @@ def test_replay_page_plays_in_chromium(browser: Page, results: Path) -> None:
         " s.dispatchEvent(new Event('change')); return true; })()"
     )
     browser.settle(3)
-    assert browser.evaluate("document.getElementById('controller').selectedOptions[0].text") == "otmm+dls"
+    assert (
+        browser.evaluate("document.getElementById('controller').selectedOptions[0].text")
+        == "otmm+dls"
+    )
     assert browser.console_errors == []
 
 

@@ -1,4 +1,4 @@
-"""Replays read back stored runs: planar GIF frames follow the stored path; bad input is one line."""
+"""Replays read back stored runs: GIF frames follow the stored path; bad input is one line."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ experiments:
   - name: three-link
     robot: {type: planar, link_lengths: [0.5, 0.4, 0.3]}
     q0: [0.3, 0.5, 0.4]
-    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4}
+    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4
     duration: 0.4
     controllers:
       - name: DLS
@@ -53,7 +53,11 @@ experiments:
     robot: {type: pinocchio, name: ur5, task: pose}
     task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
     q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory: {type: pose_line, end: [0.6214, 0.1878, 0.3384], end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926], duration: 0.3}
+    trajectory:
+      type: pose_line
+      end: [0.6214, 0.1878, 0.3384]
+      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
+      duration: 0.3
     duration: 0.3
     controllers:
       - name: pinv
@@ -103,13 +107,13 @@ def test_planar_link_lengths_are_recovered_from_the_time_series(planar_results: 
     groups = group_scenarios(discover_runs(planar_results))
     two = fit_planar_arm(groups[("E1.circle", "clik")])
     three = fit_planar_arm(groups[("three-link", "clik")])
-    np.testing.assert_allclose(getattr(two, "link_lengths"), [1.0, 0.8], atol=1e-7)
-    np.testing.assert_allclose(getattr(three, "link_lengths"), [0.5, 0.4, 0.3], atol=1e-7)
+    np.testing.assert_allclose(two.link_lengths, [1.0, 0.8], atol=1e-7)
+    np.testing.assert_allclose(three.link_lengths, [0.5, 0.4, 0.3], atol=1e-7)
 
 
 def test_ur5_is_identified_among_arms_with_the_same_joint_names(arm_results: Path) -> None:
     robot = identify_urdf_arm(discover_runs(arm_results))
-    assert robot.name == "ur5" and getattr(robot, "frame_name") == "tool0"
+    assert robot.name == "ur5" and robot.frame_name == "tool0"
 
 
 def _tip_centres(frame: Image.Image, maps: list[dict[str, float]]) -> list[np.ndarray | None]:
@@ -189,7 +193,9 @@ def test_arm_page_is_self_contained_and_decimated(
     results = _copy(arm_results, tmp_path)
     assert main(["replay", str(results), "--max-bytes", "20000"]) == 0
     line = capsys.readouterr().out
-    assert re.search(r"replay: .*wrist-clik\.html \([\d.]+ MB, 2 controllers, \d+ of 30 steps", line)
+    assert re.search(
+        r"replay: .*wrist-clik\.html \([\d.]+ MB, 2 controllers, \d+ of 30 steps", line
+    )
     page = (results / "replays" / "wrist-clik.html").read_text()
     assert "MeshCat.Viewer" in page and "DecompressionStream" in page
     # offline: no external script, stylesheet or fetch target
@@ -212,7 +218,9 @@ def test_missing_meshes_fall_back_to_simple_shapes_with_a_warning(
     assert main(["replay", str(results)]) == 0
     captured = capsys.readouterr()
     warning = [line for line in captured.err.splitlines() if "warning" in line]
-    assert len(warning) == 1 and "meshes unavailable" in warning[0] and "simple shapes" in warning[0]
+    assert (
+        len(warning) == 1 and "meshes unavailable" in warning[0] and "simple shapes" in warning[0]
+    )
     page = (results / "replays" / "wrist-clik.html").read_text()
     assert "simple shapes" in page
 
@@ -220,8 +228,14 @@ def test_missing_meshes_fall_back_to_simple_shapes_with_a_warning(
 @pytest.mark.parametrize(
     ("arguments", "message"),
     [
-        (["--experiment", "E9"], r"--experiment: unknown experiment 'E9'; available: E1.circle, three-link"),
-        (["--controller", "SRI"], r"--controller: unknown controller 'SRI'; available: DLS, OTMM/linear, RMRC"),
+        (
+            ["--experiment", "E9"],
+            r"--experiment: unknown experiment 'E9'; available: E1.circle, three-link",
+        ),
+        (
+            ["--controller", "SRI"],
+            r"--controller: unknown controller 'SRI'; available: DLS, OTMM/linear, RMRC",
+        ),
         (
             ["--experiment", "three-link", "--controller", "RMRC"],
             r"--controller: unknown controller 'RMRC' in experiment 'three-link'; available: DLS",
@@ -280,7 +294,10 @@ def test_run_replay_records_the_robot_and_writes_every_scenario(
     config = tmp_path / "config.yaml"
     config.write_text(PLANAR.replace("duration: 1.2", "duration: 0.3"))
     out = tmp_path / "out"
-    assert main(["run", str(config), "--out", str(out), "--figures", "none", "--quiet", "--replay"]) == 0
+    assert (
+        main(["run", str(config), "--out", str(out), "--figures", "none", "--quiet", "--replay"])
+        == 0
+    )
     assert json.loads((out / "E1.circle" / "robot.json").read_text()) == {
         "type": "planar",
         "params": {"link_lengths": [1.0, 0.8]},

@@ -78,7 +78,8 @@ def _missing_meshes(geometry_model: Any) -> list[str]:
     return [
         str(g.meshPath)
         for g in geometry_model.geometryObjects
-        if str(g.meshPath) and not os.path.isfile(str(g.meshPath))
+        if str(g.meshPath)
+        and not os.path.isfile(str(g.meshPath))
         and not str(g.meshPath).startswith("BOX")
     ]
 
@@ -107,7 +108,9 @@ def _primitive_model(robot: Any) -> Any:
         parent = model.parents[joint]
         offset = np.asarray(model.jointPlacements[joint].translation, dtype=float)
         segment(f"link_{joint}", parent, offset)
-        sphere = pin.GeometryObject(f"joint_{joint}", joint, pin.SE3.Identity(), coal.Sphere(radius * 1.3))
+        sphere = pin.GeometryObject(
+            f"joint_{joint}", joint, pin.SE3.Identity(), coal.Sphere(radius * 1.3)
+        )
         sphere.meshColor = np.array([0.35, 0.45, 0.6, 1.0])
         geometry.addGeometryObject(sphere)
     frame = model.frames[robot.frame_id]
@@ -127,7 +130,9 @@ def _visual_model(robot: Any) -> tuple[Any, list[str]]:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 geometry = pin.buildGeomFromUrdf(
-                    robot.model, robot.urdf_path, pin.GeometryType.VISUAL,
+                    robot.model,
+                    robot.urdf_path,
+                    pin.GeometryType.VISUAL,
                     package_dirs=list(robot.package_dirs),
                 )
         except (RuntimeError, ValueError, OSError) as error:
@@ -154,7 +159,10 @@ def _line(points: FloatArray, color: int, width: float) -> tuple[Any, Any]:
     g = import_meshcat().geometry
     finite = points[np.all(np.isfinite(points), axis=1)]
     return (
-        g.Line(g.PointsGeometry(finite.T.astype(np.float32)), g.LineBasicMaterial(color=color, linewidth=width)),
+        g.Line(
+            g.PointsGeometry(finite.T.astype(np.float32)),
+            g.LineBasicMaterial(color=color, linewidth=width),
+        ),
         None,
     )
 
@@ -220,6 +228,7 @@ def geometry_transforms(visualizer: Any, robot: Robot, q: FloatArray) -> FloatAr
 
     Args:
         visualizer: The visualizer returned by :func:`build_arm_scene`.
+        robot: The arm (converts joint coordinates to configurations).
         q: Joint coordinates [rad], shape ``(F, nv)``; non-finite rows repeat the previous one.
 
     Returns:
@@ -231,7 +240,10 @@ def geometry_transforms(visualizer: Any, robot: Robot, q: FloatArray) -> FloatAr
 
     model, data = visualizer.model, visualizer.data
     geometry, geometry_data = visualizer.visual_model, visualizer.visual_data
-    scales = [np.diag(np.append(np.asarray(g.meshScale, dtype=float), 1.0)) for g in geometry.geometryObjects]
+    scales = [
+        np.diag(np.append(np.asarray(g.meshScale, dtype=float), 1.0))
+        for g in geometry.geometryObjects
+    ]
     out = np.zeros((q.shape[0], geometry.ngeoms, 12), dtype=np.float32)
     last = np.zeros(q.shape[1])
     for k, row in enumerate(q):

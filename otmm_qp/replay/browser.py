@@ -73,7 +73,9 @@ class Page:
         """Send a DevTools command and return its result (events seen meanwhile are kept)."""
         ident = next(self._ids)
         self._socket.send(
-            json.dumps({"id": ident, "method": method, "params": params, "sessionId": self._session})
+            json.dumps(
+                {"id": ident, "method": method, "params": params, "sessionId": self._session}
+            )
         )
         deadline = time.monotonic() + timeout
         while True:
@@ -101,7 +103,9 @@ class Page:
             raise BrowserError(f"{expression[:60]}: {result['exceptionDetails'].get('text')}")
         return result.get("result", {}).get("value")
 
-    def open(self, url: str, ready: str = "document.readyState === 'complete'", timeout: float = 60.0) -> None:
+    def open(
+        self, url: str, ready: str = "document.readyState === 'complete'", timeout: float = 60.0
+    ) -> None:
         """Navigate and wait until the ``ready`` expression is true."""
         self.send("Page.navigate", url=url)
         deadline = time.monotonic() + timeout
@@ -114,8 +118,9 @@ class Page:
     def settle(self, frames: int = 3) -> None:
         """Let the page render a few animation frames."""
         self.evaluate(
-            "new Promise(r => { let n = %d; const f = () => (--n > 0 ? requestAnimationFrame(f) : r(true));"
-            " requestAnimationFrame(f); })" % frames
+            f"new Promise(r => {{ let n = {frames};"
+            " const f = () => (--n > 0 ? requestAnimationFrame(f) : r(true));"
+            " requestAnimationFrame(f); }})"
         )
 
     def click(self, x: float, y: float) -> None:
@@ -129,7 +134,9 @@ class Page:
 
 
 @contextmanager
-def chromium_page(width: int = 1000, height: int = 700, executable: str | None = None) -> Iterator[Page]:
+def chromium_page(
+    width: int = 1000, height: int = 700, executable: str | None = None
+) -> Iterator[Page]:
     """A fresh headless Chromium (own profile, no network needed) with one tab.
 
     Raises:
@@ -165,13 +172,18 @@ def chromium_page(width: int = 1000, height: int = 700, executable: str | None =
             threading.Thread(target=_drain, args=(process.stderr,), daemon=True).start()
             with connect(endpoint, max_size=None, open_timeout=30) as socket:
                 target = _call(socket, 1, "Target.createTarget", url="about:blank")["targetId"]
-                session = _call(socket, 2, "Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+                session = _call(socket, 2, "Target.attachToTarget", targetId=target, flatten=True)[
+                    "sessionId"
+                ]
                 page = Page(socket, session)
                 for domain in ("Page", "Runtime", "Log"):
                     page.send(f"{domain}.enable")
                 page.send(
                     "Emulation.setDeviceMetricsOverride",
-                    width=width, height=height, deviceScaleFactor=1, mobile=False,
+                    width=width,
+                    height=height,
+                    deviceScaleFactor=1,
+                    mobile=False,
                 )
                 yield page
         finally:
@@ -222,7 +234,9 @@ def _call(socket: Any, ident: int, method: str, **params: Any) -> dict[str, Any]
             return dict(message["result"])
 
 
-def screenshot_replay(html: Path, png: Path, fragment: str = "", width: int = 1000, height: int = 700) -> list[str]:
+def screenshot_replay(
+    html: Path, png: Path, fragment: str = "", width: int = 1000, height: int = 700
+) -> list[str]:
     """Open a replay page, wait until it is ready, write a PNG; returns console errors."""
     with chromium_page(width, height) as page:
         url = Path(html).resolve().as_uri() + (f"#{fragment}" if fragment else "")

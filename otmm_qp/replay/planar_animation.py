@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.replay.frames import FramePlan, plan_frames
+from otmm_qp.replay.safe_output import atomic_write_bytes
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -92,7 +93,8 @@ def _render(
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    lengths = np.asarray(getattr(robot, "link_lengths"), dtype=float)
+    arm: Any = robot
+    lengths = np.asarray(arm.link_lengths, dtype=np.float64)
     reach = float(lengths.sum()) * 1.08
     count = len(runs)
     columns = min(count, 4)
@@ -103,7 +105,9 @@ def _render(
     for run in runs:
         for q in run.q[np.minimum(plan.indices, run.steps - 1)]:
             if np.all(np.isfinite(q)):
-                sigma_max = max(sigma_max, float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[0]))
+                sigma_max = max(
+                    sigma_max, float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[0])
+                )
     ellipse_scale = 0.3 * reach / sigma_max
     angles = np.linspace(0.0, 2.0 * np.pi, 48)
     panels = []
@@ -137,7 +141,14 @@ def _render(
         origin = axes.transData.transform((0.0, 0.0))
         unit = axes.transData.transform((1.0, 1.0)) - origin
         # image pixel = (sx·x + ox, sy·y + oy); y grows downwards in the image
-        maps.append({"sx": float(unit[0]), "ox": float(origin[0]), "sy": float(-unit[1]), "oy": float(height - origin[1])})
+        maps.append(
+            {
+                "sx": float(unit[0]),
+                "ox": float(origin[0]),
+                "sy": float(-unit[1]),
+                "oy": float(height - origin[1]),
+            }
+        )
     palette = _palette_image()
     images = []
     for k in plan.indices:
@@ -172,7 +183,15 @@ def _render(
     else:
         duration = 500
     buffer = io.BytesIO()
-    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=duration, loop=0, optimize=False)
+    images[0].save(
+        buffer,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        duration=duration,
+        loop=0,
+        optimize=False,
+    )
     return buffer.getvalue(), maps, (width, height)
 
 
@@ -196,8 +215,6 @@ def write_planar_animation(
         max_bytes: Upper bound on the GIF size [bytes]; frames are halved until it fits.
         sigma_s: σ_S of the colour scale [-].
     """
-    from otmm_qp.replay.arm_page import _atomic_write
-
     steps = max(r.steps for r in runs)
     plan = plan_frames(steps, max_frames)
     shrunk = False
@@ -207,7 +224,7 @@ def write_planar_animation(
             break
         plan = plan_frames(steps, plan.frames // 2)
         shrunk = True
-    _atomic_write(path, data)
+    atomic_write_bytes(path, data)
     sidecar = path.with_suffix(".json")
     description = {
         "title": title,
@@ -220,5 +237,5 @@ def write_planar_animation(
         "controllers": [r.controller for r in runs],
         "pixel_maps": maps,
     }
-    _atomic_write(sidecar, (json.dumps(description, indent=1) + "\n").encode("utf-8"))
+    atomic_write_bytes(sidecar, (json.dumps(description, indent=1) + "\n").encode("utf-8"))
     return AnimationResult(path, sidecar, plan, shrunk)

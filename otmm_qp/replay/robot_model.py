@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.replay.safe_output import atomic_write_bytes
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -39,14 +40,14 @@ def write_robot_record(experiment_dir: Path, robot_type: str, params: dict[str, 
     experiment_dir.mkdir(parents=True, exist_ok=True)
     path = experiment_dir / ROBOT_RECORD
     text = json.dumps({"type": robot_type, "params": params}, indent=1, default=str)
-    temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(text + "\n", encoding="utf-8")
-    temporary.replace(path)
+    atomic_write_bytes(path, (text + "\n").encode("utf-8"))
     return path
 
 
 def _sample_rows(run: StoredRun, count: int = 8) -> list[int]:
-    finite = np.flatnonzero(np.all(np.isfinite(run.q), axis=1) & np.all(np.isfinite(run.position), axis=1))
+    finite = np.flatnonzero(
+        np.all(np.isfinite(run.q), axis=1) & np.all(np.isfinite(run.position), axis=1)
+    )
     if finite.size == 0:
         return []
     picks = np.linspace(0, finite.size - 1, min(count, finite.size)).round().astype(int)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.replay.safe_output import safe_name
 from otmm_qp.robots.robot import FloatArray
 
 #: Folders under a results directory that never hold run time series.
@@ -85,9 +86,7 @@ def _float_column(rows: list[list[str]], index: int) -> FloatArray:
 
 
 def _is_time_series(header: Sequence[str]) -> bool:
-    return all(c in header for c in _REQUIRED_COLUMNS) and any(
-        c.startswith("q_") for c in header
-    )
+    return all(c in header for c in _REQUIRED_COLUMNS) and any(c.startswith("q_") for c in header)
 
 
 def read_run(path: Path, experiment: str, loop_mode: str, controller: str) -> StoredRun:
@@ -153,12 +152,7 @@ def _file_forms(name: str) -> set[str]:
     """File-name forms a display name may have been written under."""
     forms = {name, "".join(c if c.isalnum() or c in "-_." else "_" for c in name)}
     forms.add(re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".-"))
-    try:
-        from otmm_qp.output import paths  # branch hostile-input: the one safe-name function
-
-        forms.add(paths.safe_name(name))
-    except ImportError:  # pragma: no cover - until the safe-name module is merged
-        pass
+    forms.add(safe_name(name))
     return forms
 
 
@@ -218,11 +212,14 @@ def select_runs(
     """
     chosen = list(runs)
     if experiment is not None:
-        chosen = [r for r in chosen if experiment == r.experiment or _matches(experiment, r.path, 3)]
+        chosen = [
+            r for r in chosen if experiment == r.experiment or _matches(experiment, r.path, 3)
+        ]
         if not chosen:
             available = sorted({r.experiment for r in runs})
             raise ConfigError(
-                "--experiment", f"unknown experiment {experiment!r}; available: {', '.join(available)}"
+                "--experiment",
+                f"unknown experiment {experiment!r}; available: {', '.join(available)}",
             )
     if controller is not None:
         pool = chosen

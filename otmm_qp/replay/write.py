@@ -13,35 +13,11 @@ from pathlib import Path
 from typing import TextIO
 
 from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.replay.safe_output import atomic_write_bytes, ensure_inside, safe_name
 from otmm_qp.replay.stored_runs import StoredRun, discover_runs, group_scenarios, select_runs
 from otmm_qp.robots.robot import Robot
 
 REPLAY_FOLDER = "replays"
-
-
-def _safe_name(name: str) -> str:
-    try:
-        from otmm_qp.output.paths import safe_name
-    except ImportError:  # until branch hostile-input is merged: the same rule, minimal
-        import hashlib
-        import re
-
-        slug = re.sub(r"[^A-Za-z0-9._-]", "_", name.replace("\0", "")).lstrip(".-")
-        if len(slug) > 64:
-            slug = slug[:55] + "-" + hashlib.sha256(name.encode()).hexdigest()[:8]
-        return slug if slug not in ("", ".", "..") else "_"
-    return safe_name(name)
-
-
-def _inside(root: Path, path: Path) -> Path:
-    try:
-        from otmm_qp.output.paths import ensure_inside
-    except ImportError:  # until branch hostile-input is merged
-        resolved = path.resolve()
-        if not resolved.is_relative_to(root.resolve()):
-            raise ConfigError("RESULTS_DIR", f"{path} resolves outside {root}; refusing to write") from None
-        return resolved
-    return ensure_inside(root, path)
 
 
 def _unique_stems(keys: Sequence[tuple[str, ...]]) -> dict[tuple[str, ...], str]:
@@ -49,7 +25,7 @@ def _unique_stems(keys: Sequence[tuple[str, ...]]) -> dict[tuple[str, ...], str]
     stems: dict[tuple[str, ...], str] = {}
     used: set[str] = set()
     for key in keys:
-        stem = "-".join(_safe_name(part) for part in key)
+        stem = "-".join(safe_name(part) for part in key)
         candidate, n = stem, 1
         while candidate.lower() in used:
             n += 1
@@ -79,7 +55,7 @@ def write_replays(
         results_dir: A folder written by ``otmm-qp run``.
         experiment: Only this experiment (display or folder name).
         controller: Only this controller.
-        max_frames: Frame cap of planar GIFs (default :data:`~.planar_animation.DEFAULT_MAX_FRAMES`).
+        max_frames: Frame cap of planar GIFs (default 80).
         max_bytes: Size cap [bytes]: the GIF size, or the HTML's per-frame data.
         log: Stream for one line per replay (default: the current ``sys.stdout``).
         quiet: No lines (warnings still go to ``sys.stderr``).
@@ -104,10 +80,11 @@ def write_replays(
     scenarios = group_scenarios(runs)
     suffix = (controller,) if controller is not None else ()
     stems = _unique_stems([key + suffix for key in scenarios])
-    folder = _inside(root, root / REPLAY_FOLDER)
+    folder = ensure_inside(root, root / REPLAY_FOLDER)
     written: list[Path] = []
     errors: list[str] = []
     robots: dict[str, Robot] = {}
+
     def emit(text: str) -> None:
         if not quiet:
             print(text, file=log if log is not None else sys.stdout)
@@ -120,20 +97,28 @@ def write_replays(
             robots[group[0].experiment] = robot
             if group[0].dimension == 2:
                 result = write_planar_animation(
-                    _inside(root, folder / f"{stem}.gif"), title, robot, group,
+                    ensure_inside(root, folder / f"{stem}.gif"),
+                    title,
+                    robot,
+                    group,
                     max_frames=max_frames or DEFAULT_MAX_FRAMES,
                     max_bytes=max_bytes or DEFAULT_MAX_BYTES,
                 )
                 path, note = result.path, result.plan.describe()
             else:
                 page = write_arm_page(
-                    _inside(root, folder / f"{stem}.html"), title, robot, group,
+                    ensure_inside(root, folder / f"{stem}.html"),
+                    title,
+                    robot,
+                    group,
                     max_frame_bytes=max_bytes or DEFAULT_MAX_FRAME_BYTES,
                 )
                 for message in page.warnings:
                     print(f"otmm-qp: {message}", file=sys.stderr)
                 path, note = page.path, page.plan.describe()
-                _write_sidecar(path, title, "urdf-html", page.plan.frames, [r.controller for r in group])
+                _write_sidecar(
+                    path, title, "urdf-html", page.plan.frames, [r.controller for r in group]
+                )
         except OtmmError as error:
             errors.append(str(error))
             continue
@@ -151,13 +136,17 @@ def _robot(group: Sequence[StoredRun]) -> Robot:
 
 
 def _write_sidecar(path: Path, title: str, kind: str, frames: int, controllers: list[str]) -> None:
-    from otmm_qp.replay.arm_page import _atomic_write
-
     text = json.dumps(
-        {"title": title, "kind": kind, "file": path.name, "frames": frames, "controllers": controllers},
+        {
+            "title": title,
+            "kind": kind,
+            "file": path.name,
+            "frames": frames,
+            "controllers": controllers,
+        },
         indent=1,
     )
-    _atomic_write(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
+    atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
 
 
 def find_replays(results_dir: Path) -> list[tuple[str, Path]]:

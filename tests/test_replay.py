@@ -37,7 +37,7 @@ experiments:
   - name: three-link
     robot: {type: planar, link_lengths: [0.5, 0.4, 0.3]}
     q0: [0.3, 0.5, 0.4]
-    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4
+    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4}
     duration: 0.4
     controllers:
       - name: DLS

@@ -120,7 +120,7 @@ class Page:
         self.evaluate(
             f"new Promise(r => {{ let n = {frames};"
             " const f = () => (--n > 0 ? requestAnimationFrame(f) : r(true));"
-            " requestAnimationFrame(f); }})"
+            " requestAnimationFrame(f); })"
         )
 
     def click(self, x: float, y: float) -> None:

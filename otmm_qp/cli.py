@@ -151,12 +151,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "report":
             from otmm_qp.output.report import write_report
 
+            replay_error: OtmmError | None = None
             if args.replay:
                 from otmm_qp.replay import write_replays
 
-                write_replays(args.results)
+                try:
+                    write_replays(args.results)
+                except OtmmError as error:  # still write the report
+                    replay_error = error
             html, markdown = write_report(args.results)
             print(f"report: {html}\n        {markdown}")
+            if replay_error is not None:
+                raise replay_error
             return 0
         if args.command == "replay":
             from otmm_qp.commands import replay as replay_command

@@ -120,8 +120,23 @@ class NotWithinJointLimits(OtmmError):
         )
 
 
-class UnreachableTrajectory(OtmmError):
-    """The desired trajectory leaves the arm's workspace."""
+class UnreachableTrajectory(ConfigError):
+    """The desired trajectory leaves the arm's workspace (raised by the reachability check)."""
+
+
+class OutputPathError(OtmmError):
+    """An output path is unusable (outside the results folder, not writable, already used).
+
+    Attributes:
+        path: The offending path (as given).
+        reason: What is wrong and what is allowed.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        shown = path if len(path) <= 120 else path[:117] + "..."
+        super().__init__(f"output path {shown!r}: {reason}")
 
 
 class SolverNotFound(OtmmError):

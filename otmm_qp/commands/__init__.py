@@ -1,1 +1,1 @@
-"""One module per ``otmm-qp`` subcommand (NAME, HELP, add_arguments, run)."""
+"""One module per ``otmm-qp`` subcommand: ``NAME``, ``HELP``, ``add_arguments``, ``run``."""

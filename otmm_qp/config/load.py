@@ -6,11 +6,14 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import ValidationError
 
 from otmm_qp.config.schema import SuiteConfig
+from otmm_qp.config.yaml_loader import load_yaml
 from otmm_qp.exceptions import ConfigError
+
+#: Longest value shown in an error message [characters].
+MESSAGE_VALUE_LIMIT = 80
 
 #: Name of the embedded default config (the paper reproduction).
 DEFAULT_CONFIG = "paper.yaml"
@@ -38,11 +41,14 @@ def parse_config(data: Any, source: str = "config") -> SuiteConfig:
     except ValidationError as error:
         first = error.errors()[0]
         path = _field_path(tuple(first["loc"]))
-        message = first["msg"]
+        message = str(first["msg"])[:300]
         if first["type"] == "extra_forbidden":
             message = "unknown key"
-        elif first["type"] == "literal_error":
-            message = f"{message}, got {first.get('input')!r}"
+        elif first["type"] in ("literal_error", "finite_number", "string_pattern_mismatch"):
+            shown = repr(first.get("input"))
+            if len(shown) > MESSAGE_VALUE_LIMIT:
+                shown = shown[: MESSAGE_VALUE_LIMIT - 3] + "..."
+            message = f"{message}, got {shown}"
         raise ConfigError(f"{source}: {path}" if path else source, message) from None
 
 
@@ -55,11 +61,4 @@ def load_config(path: str | Path) -> SuiteConfig:
     file = Path(path)
     if not file.is_file():
         raise ConfigError(str(file), "no such config file")
-    try:
-        data = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or "malformed YAML"
-        raise ConfigError(str(file), f"malformed YAML{where}: {problem}") from None
-    return parse_config(data, str(file))
+    return parse_config(load_yaml(file), str(file))

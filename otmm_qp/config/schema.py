@@ -31,11 +31,28 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from otmm_qp.simulation.loop_modes import LoopMode
+from otmm_qp.output.paths import RESERVED_NAMES, safe_name
+
+#: How the commanded task velocity is formed (see :mod:`otmm_qp.simulation.loop_modes`).
+LoopMode = Literal["feedforward", "clik", "newton"]
+#: Default cap on control steps per run (raise it with ``max_steps`` or ``--max-steps``).
+DEFAULT_MAX_STEPS = 1_000_000
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # NaN and ±inf are refused in every float field (dt: .inf, clik_gain: .inf, q0: [.nan]).
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def check_file_name(kind: str, name: str) -> str:
+    """Refuse a name whose file-name slug is a reserved output stem (summary, report...)."""
+    stem = safe_name(name).split(".", 1)[0].lower()
+    if stem in RESERVED_NAMES:
+        raise ValueError(
+            f"{kind} name {name[:80]!r} would clash with the output file {stem!r}; "
+            f"reserved: {', '.join(RESERVED_NAMES)}"
+        )
+    return name
 
 
 class PluginSpec(BaseModel):
@@ -70,7 +87,7 @@ class ControllerConfig(_Strict):
 class ExperimentConfig(_Strict):
     """One robot, start, trajectory and the controllers compared on it."""
 
-    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]*$")
     description: str = ""
     robot: PluginSpec
     q0: list[float]
@@ -81,6 +98,11 @@ class ExperimentConfig(_Strict):
     loop_modes: list[LoopMode] | None = Field(None, min_length=1)
     clik_gain: float | None = Field(None, ge=0.0)
     task_weight: list[float] | None = None
+
+    @field_validator("name")
+    @classmethod
+    def _file_name(cls, value: str) -> str:
+        return check_file_name("experiment", value)
 
     @field_validator("controllers")
     @classmethod
@@ -113,11 +135,12 @@ class SuiteConfig(_Strict):
     clik_gain: float = Field(10.0, ge=0.0)
     metrics: MetricsConfig = MetricsConfig()  # frozen, so a shared default is safe
     claims: Literal["paper"] | None = None
+    max_steps: int = Field(DEFAULT_MAX_STEPS, gt=0)
     experiments: list[ExperimentConfig] = Field(min_length=1)
 
     @model_validator(mode="after")
     def _unique_experiments(self) -> SuiteConfig:
-        names = [e.name for e in self.experiments]
+        names = [safe_name(e.name).lower() for e in self.experiments]
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f"experiment names must be unique; repeated: {', '.join(duplicates)}")

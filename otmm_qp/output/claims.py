@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.filters.otmm import DEFAULT_SIGMA_S
+from otmm_qp.output.paths import atomic_write_text
 from otmm_qp.runner.run import RunRecord, SuiteResult
 
 BREAK_FACTOR = 5.0
@@ -291,4 +292,4 @@ def write_claims(verdicts: list[Verdict], path: Path) -> None:
         }.get(v.verdict, v.verdict)
         lines.append(f"| {v.claim} | {v.loop_mode} | {mark} | {v.evidence} |")
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n")

@@ -17,8 +17,12 @@ Scale rules, chosen so magnitudes read honestly:
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
 import multiprocessing
 import os
+import signal
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -32,9 +36,10 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullLocator
 from matplotlib.transforms import blended_transform_factory
 
+from otmm_qp.output.paths import atomic_open, safe_name, unique_names
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.runner.build import PreparedExperiment
-from otmm_qp.runner.run import ExperimentHook, RunRecord, _slug
+from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
 
 #: Resolution of the written PNGs [dots per inch].
@@ -73,7 +78,8 @@ def _new_figure(width: float, height: float) -> Figure:
 def _save(figure: Figure, path: Path) -> None:
     """Write ``figure`` as PNG."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=DPI, format="png", pil_kwargs={"compress_level": 1})
+    with atomic_open(path, "wb") as handle:
+        figure.savefig(handle, dpi=DPI, format="png", pil_kwargs={"compress_level": 1})
 
 
 def _title(ax: Axes, text: str, **style: object) -> None:
@@ -601,13 +607,38 @@ def _draw_job(job: _Job) -> None:
         plot_comparison(*args)
 
 
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In a worker: get SIGTERM when the parent dies (Linux); ignore SIGINT.
+
+    The parent handles Ctrl-C and shuts the pool down.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() == 1:  # the parent died before prctl took effect
+            os._exit(1)
+
+
 def _draw_all(jobs: list[_Job], workers: int) -> None:
     """Draw ``jobs`` serially, or on ``workers`` forked processes where fork exists."""
     if workers > 1 and len(jobs) > 1 and "fork" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
+        pool = ProcessPoolExecutor(
+            max_workers=min(workers, len(jobs)), mp_context=context, initializer=_die_with_parent
+        )
+        try:
             for _ in pool.map(_draw_job, jobs):
                 pass  # re-raises the first failure of a worker
+        except BaseException:
+            # Interrupted (SIGINT/SIGTERM) or failed: drop the queued drawings, then wait for
+            # the workers to finish their current one and exit; none is left behind.
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
         return
     for job in jobs:
         _draw_job(job)
@@ -639,6 +670,8 @@ def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None
         if out_dir is None:
             return
         name = prepared.config.name
+        # Same order as the runner's (config order), so a PNG is named like its CSV.
+        stems = unique_names(dict.fromkeys(r.result.controller for r in records))
         modes: dict[str, list[RunResult]] = {str(m): [] for m in prepared.loop_modes}
         for record in records:
             modes.setdefault(record.result.loop_mode, []).append(record.result)
@@ -647,13 +680,13 @@ def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None
         for label, results in modes.items():
             if not results:
                 continue
-            folder = out_dir / name / label
+            folder = out_dir / safe_name(name) / safe_name(label)
             folder.mkdir(parents=True, exist_ok=True)
             title = f"{name} · {label}"
             comparisons.append(("comparison", (results, folder / "comparison.png", title, sigma_s)))
             if per_run:
                 for result in results:
-                    path = folder / f"{_slug(result.controller)}.png"
+                    path = folder / f"{stems[result.controller]}.png"
                     runs.append(("run", (result, path, sigma_s)))
         _draw_all(comparisons + runs, workers)  # the larger comparisons first
 

@@ -30,13 +30,15 @@ from __future__ import annotations
 import base64
 import csv
 import html
+import io
 import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from otmm_qp.exceptions import ConfigError
+from otmm_qp.exceptions import ConfigError, OutputPathError
+from otmm_qp.output.paths import atomic_write_text, ensure_inside
 
 #: ``(column, label, format)`` shown per scenario; every column is lower-is-better.
 REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = (
@@ -83,6 +85,7 @@ class Row:
     blow_up: bool
     stuck_steps: int = 0
     steps: int = 0
+    relaxed_steps: int = 0
 
     @property
     def skipped(self) -> bool:
@@ -100,11 +103,32 @@ class Row:
         return not self.error_message and not self.blow_up and not self.stuck
 
 
-def _number(text: str) -> float:
+def _number(text: str | None) -> float:
     try:
-        return float(text)
+        return float(text or "")
     except ValueError:
         return math.nan
+
+
+def _count(text: str | None) -> int:
+    """A non-negative step count from a CSV cell; 0 when missing, NaN or garbage."""
+    value = _number(text)
+    return int(value) if math.isfinite(value) and value > 0 else 0
+
+
+#: Backend statuses that mean a bound was relaxed or could not be met on that step.
+RELAXED_STATUSES = ("relaxed", "infeasible")
+
+
+def _read_text(results_dir: Path, path: Path) -> str:
+    """A text file of the results folder; refuses links out of it and non-UTF-8 bytes."""
+    ensure_inside(results_dir, path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(str(path), "not UTF-8 text; is this a results folder?") from None
+    except OSError as error:
+        raise ConfigError(str(path), f"cannot read: {error.strerror}") from None
 
 
 def read_summary(path: Path) -> list[Row]:
@@ -115,26 +139,35 @@ def read_summary(path: Path) -> list[Row]:
     """
     if not path.is_file():
         raise ConfigError(str(path), "no summary.csv here; run an experiment first")
-    with path.open(newline="") as handle:
-        reader = csv.DictReader(handle)
+    text = _read_text(path.parent, path)
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
         required = {"experiment", "loop_mode", "controller"}
         if not required <= set(reader.fieldnames or ()):
             raise ConfigError(str(path), f"missing columns {', '.join(sorted(required))}")
-        rows = []
-        for record in reader:
-            rows.append(
-                Row(
-                    record["experiment"],
-                    record["loop_mode"],
-                    record["controller"],
-                    {key: _number(record.get(key, "")) for key, _, _ in REPORT_COLUMNS},
-                    record.get("error_message", "") or "",
-                    record.get("blow_up", "") == "True",
-                    int(_number(record.get("status_stuck", "")) or 0),
-                    int(_number(record.get("steps", "")) or 0),
-                )
-            )
-    return rows
+        return [_row(record) for record in reader]
+    except csv.Error as error:
+        raise ConfigError(str(path), f"not a readable CSV: {str(error)[:120]}") from None
+
+
+def _row(record: dict[str, str | None]) -> Row:
+    """One summary row; cells missing from a truncated file read as empty."""
+
+    def cell(key: str) -> str:
+        value = record.get(key)
+        return value if isinstance(value, str) else ""
+
+    return Row(
+        cell("experiment"),
+        cell("loop_mode"),
+        cell("controller"),
+        {key: _number(cell(key)) for key, _, _ in REPORT_COLUMNS},
+        cell("error_message"),
+        cell("blow_up") == "True",
+        _count(cell("status_stuck")),
+        _count(cell("steps")),
+        sum(_count(cell(f"status_{status}")) for status in RELAXED_STATUSES),
+    )
 
 
 def group_scenarios(rows: Sequence[Row]) -> dict[tuple[str, str], list[Row]]:
@@ -187,7 +220,15 @@ def _format(value: float, spec: str) -> str:
 
 
 def _figures(results_dir: Path) -> list[Path]:
-    return sorted(p for p in results_dir.rglob("*.png") if p.is_file())
+    """PNG files of the results folder; symlinks and anything resolving outside are ignored."""
+    root = results_dir.resolve()
+    found = []
+    for path in results_dir.rglob("*.png"):
+        if path.is_symlink() or any(p.is_symlink() for p in path.parents if p != results_dir):
+            continue
+        if path.is_file() and root in path.resolve().parents:
+            found.append(path)
+    return sorted(found)
 
 
 # ---------------------------------------------------------------- Markdown
@@ -239,6 +280,12 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
 
 
 def _status_note(row: Row) -> str:
+    return _stop_note(row) + (
+        f" (bound relaxed/infeasible on {row.relaxed_steps} steps)" if row.relaxed_steps else ""
+    )
+
+
+def _stop_note(row: Row) -> str:
     if row.blow_up:
         return " (blow-up)"
     if row.stuck:
@@ -407,11 +454,35 @@ def write_report(results_dir: Path) -> tuple[Path, Path]:
         ConfigError: No readable ``summary.csv``.
     """
     results_dir = Path(results_dir)
+    if not results_dir.is_dir():
+        raise ConfigError(str(results_dir), "not a results folder (no such directory)")
     rows = read_summary(results_dir / "summary.csv")
     claims_path = results_dir / "claims.md"
-    claims = claims_path.read_text() if claims_path.is_file() else None
+    claims = _read_text(results_dir, claims_path) if claims_path.is_file() else None
     html_path = results_dir / "report.html"
     markdown_path = results_dir / "report.md"
-    html_path.write_text(render_html(results_dir, rows, claims))
-    markdown_path.write_text(render_markdown(results_dir, rows, claims))
+    html, markdown = (
+        render_html(results_dir, rows, claims),
+        render_markdown(results_dir, rows, claims),
+    )
+    try:
+        atomic_write_text(ensure_inside(results_dir, html_path), html)
+        atomic_write_text(ensure_inside(results_dir, markdown_path), markdown)
+    except OSError as error:
+        raise OutputPathError(
+            str(results_dir), f"cannot write the report: {error.strerror}"
+        ) from None
     return html_path, markdown_path
+
+
+def write_any_report(results_dir: Path) -> tuple[Path, Path]:
+    """The report of a results folder: a study report when it holds ``study.json``."""
+    results_dir = Path(results_dir)
+    if (results_dir / "study.json").is_file():
+        from otmm_qp.studies.report import (  # type: ignore[import-not-found,unused-ignore]
+            write_study_report,
+        )
+
+        html, markdown = write_study_report(results_dir)
+        return Path(html), Path(markdown)
+    return write_report(results_dir)

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
+from otmm_qp.output.paths import atomic_open, atomic_write_text
 
 ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
 #: Columns shown in the Markdown table (the CSV has all of them).
@@ -41,7 +42,7 @@ def write_summary_csv(rows: Sequence[dict[str, object]], path: Path) -> None:
     """Write ``summary.csv`` with a stable column order."""
     columns = [*ID_COLUMNS, *METRIC_NAMES, "error_message"]
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as handle:
+    with atomic_open(path, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
         writer.writeheader()
         for row in rows:
@@ -86,4 +87,4 @@ def write_summary_markdown(rows: Sequence[dict[str, object]], path: Path, title:
                 cells[0] += f" (stopped: {row['error_message']})"
             lines.append("| " + " | ".join(cells) + " |")
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n")

@@ -10,7 +10,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from otmm_qp.exceptions import ConfigError, OtmmError
 from otmm_qp.replay.safe_output import atomic_write_bytes, ensure_inside, safe_name
@@ -169,3 +169,27 @@ def find_replays(results_dir: Path) -> list[tuple[str, Path]]:
         if Path(name).name == name and target.is_file() and target.suffix in (".html", ".gif"):
             found.append((title, Path(REPLAY_FOLDER) / name))
     return found
+
+
+def replay_after_run(results_dir: Path, prepared: Sequence[Any] = ()) -> OtmmError | None:
+    """``run --replay`` / ``report --replay``: record the robots, write every replay.
+
+    Args:
+        results_dir: The results folder just written.
+        prepared: The run's ``PreparedExperiment`` records (their config's robot block is
+            written to ``robot.json``); empty for ``report --replay``.
+
+    Returns:
+        The error, if a replay could not be written (the caller still writes its report
+        and then reports the error), else None.
+    """
+    from otmm_qp.replay.robot_model import record_robots
+
+    try:
+        if prepared:
+            robots = {p.config.name: (p.config.robot.type, p.config.robot.params) for p in prepared}
+            record_robots(Path(results_dir), robots)
+        write_replays(Path(results_dir))
+    except OtmmError as error:
+        return error
+    return None

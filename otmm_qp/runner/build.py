@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -9,14 +11,31 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, SuiteConfig
 from otmm_qp.controller import Controller
-from otmm_qp.exceptions import ConfigError, DimensionError, OtmmError, PeerUnavailable
+from otmm_qp.exceptions import (
+    ConfigError,
+    DimensionError,
+    OtmmError,
+    PeerUnavailable,
+    UnreachableTrajectory,
+)
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.simulation.simulate import task_position
+from otmm_qp.state import KinematicState
 from otmm_qp.trajectories.trajectory import Trajectory
 
 #: Trajectory samples checked against the workspace before running.
 REACH_SAMPLES = 200
+#: Largest |joint coordinate| accepted in ``q0`` [rad or m]: beyond it trigonometry is noise.
+MAX_JOINT_COORDINATE = 1.0e4
+#: Bytes logged per step and joint/task coordinate (time series of floats), for the cap message.
+_BYTES_PER_VALUE = 8
+
+
+def _short(value: object, limit: int = 120) -> str:
+    """``str(value)`` cut to ``limit`` characters (error messages never embed unbounded data)."""
+    text = str(value).replace("\n", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 @dataclass(frozen=True)
@@ -91,19 +110,84 @@ def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field
     """Reject a trajectory that leaves the arm's workspace.
 
     Raises:
-        ConfigError: Naming the first unreachable point and its time.
+        UnreachableTrajectory: Naming the first unreachable point and its time, or a trajectory
+            whose dimension does not match the robot's task.
     """
+    expected = np.shape(robot.forward(robot.configuration(np.zeros(robot.nv))))
     for t in np.linspace(0.0, duration, REACH_SAMPLES):
-        x = trajectory.position(float(t))
+        x, xdot = trajectory.sample(float(t))
+        x, xdot = np.asarray(x, dtype=float), np.asarray(xdot, dtype=float)
+        if x.shape != expected:
+            raise UnreachableTrajectory(
+                field,
+                f"gives points of shape {x.shape} but {robot.name} has a {robot.task_kind} task "
+                f"of shape {expected}; choose a trajectory of that dimension",
+            )
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(xdot))):
+            raise UnreachableTrajectory(field, f"is not finite at t = {t:.3g} s")
         if not robot.can_reach(x):
             point = np.round(task_position(np.asarray(x)), 4).tolist()
-            raise ConfigError(
+            raise UnreachableTrajectory(
                 field, f"point {point} at t = {t:.3g} s is outside the workspace of {robot.name}"
             )
 
 
+def check_robot(robot: Robot, q0: FloatArray, field: str) -> None:
+    """Reject robot parameters that make the kinematics non-finite, and NaN limits.
+
+    Raises:
+        ConfigError: Naming the robot or ``q0`` field.
+    """
+    if np.any(np.abs(robot.joint_coordinates(q0)) > MAX_JOINT_COORDINATE):
+        raise ConfigError(
+            f"{field}.q0", f"every joint coordinate must be within ±{MAX_JOINT_COORDINATE:g}"
+        )
+    lower, upper = robot.position_limits
+    if np.any(np.isnan(lower)) or np.any(np.isnan(upper)):
+        raise ConfigError(f"{field}.robot", "position limits must not be NaN")
+    speed = np.asarray(robot.velocity_limits, dtype=float)
+    if np.any(np.isnan(speed)) or np.any(speed <= 0.0):
+        raise ConfigError(f"{field}.robot", "velocity limits must be > 0 (inf: unbounded), not NaN")
+    x, jacobian = robot.kinematics(q0)
+    scale = float(np.max(np.abs(x[:3]))) if np.size(x) else 0.0
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(jacobian))) or scale > 1.0e6:
+        raise ConfigError(
+            f"{field}.robot",
+            "kinematics at q0 are not finite or beyond 1e6 m; check link lengths and q0",
+        )
+
+
+def check_step_count(steps: float, max_steps: int, values_per_step: int, field: str) -> None:
+    """Refuse more than ``max_steps`` control steps per run, saying how much memory it takes.
+
+    Raises:
+        ConfigError: On ``duration``/``dt``, with the memory the logs would need.
+    """
+    if not math.isfinite(steps) or steps > max_steps:
+        gib = (
+            steps * values_per_step * _BYTES_PER_VALUE / 2**30 if math.isfinite(steps) else math.inf
+        )
+        raise ConfigError(
+            field,
+            f"duration/dt = {steps:.3g} steps per run exceeds max_steps = {max_steps} "
+            f"(the logs would take about {gib:.3g} GiB per run); shorten duration, raise dt, "
+            "or raise max_steps (config key, or --max-steps) explicitly",
+        )
+
+
+def dry_run(controller: Controller, robot: Robot, state: KinematicState, xdot: FloatArray) -> None:
+    """Take one step with a copy of ``controller`` at the start configuration.
+
+    Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``) then fail
+    before any compute; the controller itself is left untouched.
+    """
+    trial = copy.deepcopy(controller)
+    trial.bind(robot, 1.0)
+    trial.step(state, xdot, np.zeros(robot.nv))
+
+
 def prepare_experiment(
-    suite: SuiteConfig, index: int, source: str = "config"
+    suite: SuiteConfig, index: int, source: str = "config", max_steps: int | None = None
 ) -> PreparedExperiment:
     """Build and check experiment ``index`` of ``suite``.
 
@@ -112,6 +196,7 @@ def prepare_experiment(
     """
     config = suite.experiments[index]
     field = f"{source}: experiments.{index}"
+    max_steps = suite.max_steps if max_steps is None else max_steps
     robot: Robot = registry.create(
         registry.ROBOTS, config.robot.type, config.robot.params, f"{field}.robot"
     )
@@ -138,17 +223,42 @@ def prepare_experiment(
     )
     trajectory.name = config.trajectory.type
     duration = config.duration if config.duration is not None else trajectory.duration
+    dt = config.dt if config.dt is not None else suite.dt
+    loop_modes = list(config.loop_modes or suite.loop_modes)
+    values = 3 * robot.nv + 4 * robot.task_dim + 12
+    duration_field = f"{field}.duration" if config.duration is not None else f"{field}.trajectory"
+    if not math.isfinite(duration) or duration <= 0.0:
+        raise ConfigError(duration_field, f"duration must be finite and > 0, got {duration:.3g}")
+    check_step_count(duration / dt, max_steps, values, duration_field)
+    check_robot(robot, q0, field)
     check_reachable(robot, trajectory, duration, f"{field}.trajectory")
     controllers, skipped = _build_controllers(config, field)
+    state = KinematicState.compute(robot, q0, weight)
+    xdot = np.asarray(trajectory.sample(0.0)[1], dtype=float)
+    for j, controller in enumerate(controllers):
+        try:
+            dry_run(controller, robot, state, xdot)
+        except OtmmError as error:
+            if not isinstance(error, DimensionError | ConfigError):
+                continue  # a run-time condition (e.g. infeasible), reported by the run itself
+            raise ConfigError(
+                f"{field}.controllers.{j} ({controller.name})", _short(error)
+            ) from None
+        except (ValueError, TypeError, IndexError, ArithmeticError) as error:
+            raise ConfigError(
+                f"{field}.controllers.{j} ({controller.name})",
+                f"fails on its first step with robot {robot.name} (nv = {robot.nv}, "
+                f"task {robot.task_dim}): {_short(error)}",
+            ) from None
     return PreparedExperiment(
         config=config,
         robot=robot,
         q0=q0,
         trajectory=trajectory,
         controllers=controllers,
-        dt=config.dt if config.dt is not None else suite.dt,
+        dt=dt,
         duration=duration,
-        loop_modes=list(config.loop_modes or suite.loop_modes),
+        loop_modes=loop_modes,
         clik_gain=config.clik_gain if config.clik_gain is not None else suite.clik_gain,
         task_weight=weight,
         skipped=skipped,

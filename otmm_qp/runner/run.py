@@ -11,6 +11,7 @@ from typing import TextIO
 
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
+from otmm_qp.output.paths import ensure_inside, safe_name, unique_names
 from otmm_qp.output.summary import summary_row, write_summary_csv, write_summary_markdown
 from otmm_qp.runner.build import PreparedExperiment, SkippedController, prepare_experiment
 from otmm_qp.simulation.run_result import RunResult
@@ -64,13 +65,41 @@ class SuiteResult:
 ExperimentHook = Callable[[PreparedExperiment, list[RunRecord], Path | None], None]
 
 
-def prepare_suite(suite: SuiteConfig, source: str = "config") -> list[PreparedExperiment]:
-    """Build every experiment first, so bad input fails before any compute."""
-    return [prepare_experiment(suite, i, source) for i in range(len(suite.experiments))]
+def prepare_suite(
+    suite: SuiteConfig, source: str = "config", max_steps: int | None = None
+) -> list[PreparedExperiment]:
+    """Build every experiment first, so bad input fails before any compute.
+
+    Args:
+        suite: Validated config.
+        source: Config name used in messages.
+        max_steps: Cap on control steps per run (None: the config's ``max_steps``).
+    """
+    return [prepare_experiment(suite, i, source, max_steps) for i in range(len(suite.experiments))]
 
 
-def run_experiment(prepared: PreparedExperiment, settings: MetricSettings) -> list[RunRecord]:
-    """Every (loop mode, controller) run of one experiment."""
+def run_csv_path(out_dir: Path, result: RunResult, controllers: list[str]) -> Path:
+    """``out_dir/<experiment>/<loop mode>/<controller>.csv`` through the safe, unique names.
+
+    Args:
+        out_dir: Results folder.
+        result: The run.
+        controllers: Controller names of its experiment, in config order (for unique slugs).
+
+    Raises:
+        OutputPathError: The path would leave ``out_dir``.
+    """
+    stem = unique_names(controllers)[result.controller]
+    folder = out_dir / safe_name(result.experiment) / safe_name(result.loop_mode)
+    return ensure_inside(out_dir, folder / f"{stem}.csv")
+
+
+def run_experiment(
+    prepared: PreparedExperiment,
+    settings: MetricSettings,
+    after_run: Callable[[RunRecord], None] | None = None,
+) -> list[RunRecord]:
+    """Every (loop mode, controller) run of one experiment; ``after_run`` sees each one."""
     records = []
     for mode in prepared.loop_modes:
         for controller in prepared.controllers:
@@ -87,6 +116,8 @@ def run_experiment(prepared: PreparedExperiment, settings: MetricSettings) -> li
                 prepared.config.name,
             )
             records.append(RunRecord(result, compute_metrics(result, settings)))
+            if after_run is not None:
+                after_run(records[-1])
     return records
 
 
@@ -127,9 +158,24 @@ def run_suite(
     total = sum(len(p.loop_modes) * len(p.controllers) for p in experiments)
     done = 0
     for experiment in experiments:
+        names = [c.name for c in experiment.controllers]
+        writing = [0.0]  # seconds spent writing, kept out of compute_seconds
+
+        def finished(
+            record: RunRecord, names: list[str] = names, writing: list[float] = writing
+        ) -> None:
+            # Each run is on disk (atomically) and in the summary as soon as it ends, so an
+            # interrupted suite is always reportable.
+            outcome.records.append(record)
+            if out_dir is not None:
+                tic = time.perf_counter()
+                record.result.write_csv(run_csv_path(out_dir, record.result, names))
+                write_summaries(outcome, out_dir)
+                writing[0] += time.perf_counter() - tic
+
         tic = time.perf_counter()
-        records = run_experiment(experiment, settings)
-        outcome.compute_seconds += time.perf_counter() - tic
+        records = run_experiment(experiment, settings, finished)
+        outcome.compute_seconds += time.perf_counter() - tic - writing[0]
         done += len(records)
         _progress(progress, f"[{done}/{total} runs] {experiment.config.name} done")
         for record in records:
@@ -138,14 +184,10 @@ def run_suite(
                 outcome.errors.append(
                     f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}"
                 )
-        outcome.records.extend(records)
         for skip in experiment.skipped:
             outcome.skipped.append((experiment.config.name, skip))
             _progress(progress, f"{experiment.config.name}/{skip.name}: skipped ({skip.reason})")
-        if out_dir is not None:
-            for record in records:
-                r = record.result
-                r.write_csv(out_dir / r.experiment / r.loop_mode / f"{_slug(r.controller)}.csv")
+        if out_dir is not None and experiment.skipped:
             write_summaries(outcome, out_dir)
         if after_experiment is not None:
             after_experiment(experiment, records, out_dir)
@@ -181,7 +223,3 @@ def _skipped_row(experiment: str, loop_mode: str, skip: SkippedController) -> di
         "backend": skip.backend,
     }
     return summary_row(identity, {"steps": 0, "completed": False}, f"skipped: {skip.reason}")
-
-
-def _slug(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)

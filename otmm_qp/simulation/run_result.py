@@ -100,7 +100,9 @@ class RunResult:
         header += [f"error_{i}" for i in range(self.error.shape[1])]
         header += ["sigma_min", "p", "filter_active", "removed", "damping", "scale", "weak_speed"]
         header += ["status", "step_time_us"]
-        with path.open("w", newline="") as handle:
+        from otmm_qp.output.paths import atomic_open
+
+        with atomic_open(path, "w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(header)
             for k in range(self.steps):

@@ -20,7 +20,7 @@ from otmm_qp.runner import interrupt
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name.
-COMMAND_MODULES = ("run", "list", "report", "bench", "study")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay")
 
 
 def _command(name: str) -> ModuleType:

@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="cap on control steps per run (default: the config's max_steps, 1000000)",
     )
     parser.add_argument(
+        "--replay", action="store_true", help="also write replays (see 'otmm-qp replay')"
+    )
+    parser.add_argument(
         "--force",
         action="store_true",
         help="replace the results of an earlier run in --out (refused without it)",
@@ -75,6 +78,11 @@ def run(args: argparse.Namespace) -> int:
             from otmm_qp.output.claims import judge_paper_claims, write_claims
 
             write_claims(judge_paper_claims(outcome), out_dir / "claims.md")
+        replay_error = None
+        if args.replay:
+            from otmm_qp.replay.write import replay_after_run
+
+            replay_error = replay_after_run(out_dir, prepared)
         from otmm_qp.output.report import write_report
 
         report_html, _ = write_report(out_dir)
@@ -85,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
     if suite.claims == "paper":
         print(f"  claims:  {out_dir / 'claims.md'}")
     print(f"  report:  {report_html}")
+    if replay_error is not None:
+        raise replay_error
     for message in outcome.errors:
         print(f"otmm-qp: error: {message}", file=sys.stderr)
     return EXIT_BAD_INPUT if outcome.errors else 0

@@ -1,0 +1,179 @@
+r"""Which robot a stored run used: a recorded description, or recovered from the time series.
+
+The results of ``otmm-qp run`` hold joint coordinates and end-effector positions but not
+the robot block of the config. A replay therefore uses, in order:
+
+1. ``<experiment folder>/robot.json`` (``{"type": ..., "params": {...}}``, the config's
+   robot block) when present; :func:`write_robot_record` writes it.
+2. For 2-D positions, a planar arm whose link lengths are the least-squares solution of the
+   forward kinematics over all stored steps (linear in the lengths):
+
+   .. math:: \begin{bmatrix}\cos\Theta\\ \sin\Theta\end{bmatrix} l =
+             \begin{bmatrix}x\\ y\end{bmatrix},\qquad \Theta_{k,i} = \sum_{j\le i} q_{k,j}
+
+   accepted only if it reproduces every stored position within 1 µm.
+3. For 3-D positions, the example-robot-data arm with the same joint names whose forward
+   kinematics puts one of its frames on the stored positions (within 1 µm).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.replay.safe_output import atomic_write_bytes
+from otmm_qp.replay.stored_runs import StoredRun
+from otmm_qp.robots.robot import FloatArray, Robot
+
+ROBOT_RECORD = "robot.json"
+#: Largest position mismatch [m] accepted when recovering a robot from its time series.
+MATCH_TOLERANCE = 1e-6
+
+
+def write_robot_record(experiment_dir: Path, robot_type: str, params: dict[str, Any]) -> Path:
+    """Write ``experiment_dir/robot.json`` so a later replay rebuilds the exact robot."""
+    experiment_dir.mkdir(parents=True, exist_ok=True)
+    path = experiment_dir / ROBOT_RECORD
+    text = json.dumps({"type": robot_type, "params": params}, indent=1, default=str)
+    atomic_write_bytes(path, (text + "\n").encode("utf-8"))
+    return path
+
+
+def _sample_rows(run: StoredRun, count: int = 8) -> list[int]:
+    finite = np.flatnonzero(
+        np.all(np.isfinite(run.q), axis=1) & np.all(np.isfinite(run.position), axis=1)
+    )
+    if finite.size == 0:
+        return []
+    picks = np.linspace(0, finite.size - 1, min(count, finite.size)).round().astype(int)
+    return [int(finite[i]) for i in np.unique(picks)]
+
+
+def fit_planar_arm(runs: Sequence[StoredRun]) -> Robot:
+    """A :class:`~otmm_qp.robots.planar_arm.PlanarArm` whose kinematics reproduce the runs.
+
+    Raises:
+        ConfigError: No positive link lengths reproduce the stored positions.
+    """
+    from otmm_qp.robots.planar_arm import PlanarArm
+
+    blocks, targets = [], []
+    for run in runs:
+        rows = np.all(np.isfinite(run.q), axis=1) & np.all(np.isfinite(run.position), axis=1)
+        theta = np.cumsum(run.q[rows], axis=1)
+        blocks += [np.cos(theta), np.sin(theta)]
+        targets += [run.position[rows, 0], run.position[rows, 1]]
+    if not blocks or sum(b.shape[0] for b in blocks) == 0:
+        raise ConfigError(str(runs[0].path), "no finite step to recover the planar arm from")
+    matrix, target = np.vstack(blocks), np.concatenate(targets)
+    lengths = np.linalg.lstsq(matrix, target, rcond=None)[0]
+    residual = float(np.max(np.abs(matrix @ lengths - target)))
+    if residual > MATCH_TOLERANCE * max(1.0, float(np.abs(target).max())) or np.any(lengths <= 0):
+        raise ConfigError(
+            str(runs[0].path.parent.parent / ROBOT_RECORD),
+            "cannot recover the planar arm's link lengths from the stored positions "
+            f"(residual {residual:.2g} m); write this robot.json with the config's robot block",
+        )
+    return PlanarArm(lengths)
+
+
+def _frame_matching(arm: Any, run: StoredRun, rows: Sequence[int]) -> str | None:
+    """Name of a frame of ``arm`` that sits on the stored positions, or None."""
+    import pinocchio as pin
+
+    model, data = arm.model, arm.model.createData()
+    worst = np.zeros(model.nframes)
+    for k in rows:
+        pin.framesForwardKinematics(model, data, arm.configuration(run.q[k]))
+        points = np.array([data.oMf[i].translation for i in range(model.nframes)])
+        worst = np.maximum(worst, np.linalg.norm(points - run.position[k], axis=1))
+    matching = [str(model.frames[int(i)].name) for i in np.flatnonzero(worst <= MATCH_TOLERANCE)]
+    if not matching:
+        return None
+    return arm.frame_name if arm.frame_name in matching else matching[-1]
+
+
+def identify_urdf_arm(runs: Sequence[StoredRun]) -> Robot:
+    """The example-robot-data arm (and frame) that produced the runs.
+
+    Raises:
+        ConfigError: No known arm has these joint names and kinematics.
+    """
+    from otmm_qp.robots.pinocchio_arm import ARMS, PinocchioArm
+
+    run = runs[0]
+    rows = _sample_rows(run)
+    for name in sorted(ARMS):
+        try:
+            arm = PinocchioArm(name=name, task="position")
+        except OtmmError:
+            continue
+        if arm.joint_names != run.joint_names or not rows:
+            continue
+        frame = _frame_matching(arm, run, rows)
+        if frame is not None:
+            return PinocchioArm(name=name, frame=frame, task="position")
+    raise ConfigError(
+        str(run.path.parent.parent / ROBOT_RECORD),
+        f"no example-robot-data arm ({', '.join(sorted(ARMS))}) has joints "
+        f"{', '.join(run.joint_names)} and these end-effector positions; write this robot.json "
+        'with the config\'s robot block, e.g. {"type": "pinocchio", "params": {"urdf": "..."}}',
+    )
+
+
+def load_robot(runs: Sequence[StoredRun]) -> Robot:
+    """The robot of one experiment's runs (see the module docstring for the order).
+
+    Raises:
+        ConfigError: A malformed ``robot.json`` or an unidentifiable robot.
+        OtmmError: The recorded robot cannot be built (e.g. its URDF moved).
+    """
+    record = runs[0].path.parent.parent / ROBOT_RECORD
+    if record.is_file():
+        from otmm_qp import registry
+
+        try:
+            spec = json.loads(record.read_text(encoding="utf-8"))
+            robot_type, params = str(spec["type"]), dict(spec.get("params") or {})
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+            raise ConfigError(str(record), f"malformed robot record: {error}") from error
+        robot: Robot = registry.create(registry.ROBOTS, robot_type, params, str(record))
+        return robot
+    if runs[0].dimension == 2:
+        return fit_planar_arm(runs)
+    return identify_urdf_arm(runs)
+
+
+def joint_configuration(robot: Robot, coordinates: FloatArray) -> FloatArray:
+    """Configuration ``q`` of the robot for stored joint coordinates (manifold-aware)."""
+    convert = getattr(robot, "configuration", None)
+    if convert is None:
+        return np.asarray(coordinates, dtype=float)
+    return np.asarray(convert(np.asarray(coordinates, dtype=float)))
+
+
+def record_robots(results_dir: Path, robots: dict[str, tuple[str, dict[str, Any]]]) -> list[Path]:
+    """Write ``robot.json`` into the folder of each experiment's stored runs.
+
+    Args:
+        results_dir: The results folder.
+        robots: Experiment display name → ``(robot type, params)`` (the config's robot block).
+
+    Returns:
+        The files written (experiments without stored runs are skipped).
+    """
+    from otmm_qp.replay.stored_runs import discover_runs
+
+    folders: dict[str, Path] = {}
+    for run in discover_runs(results_dir):
+        folders.setdefault(run.experiment, run.path.parent.parent)
+    return [
+        write_robot_record(folders[name], robot_type, params)
+        for name, (robot_type, params) in robots.items()
+        if name in folders
+    ]

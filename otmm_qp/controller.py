@@ -72,10 +72,8 @@ class Controller:
         Raises:
             DimensionError: ``xdot`` is not of shape ``(n,)`` or ``qdot_prev`` not ``(nv,)``.
         """
-        if not isinstance(xdot, np.ndarray):
-            xdot = np.asarray(xdot, dtype=float)
-        if not isinstance(qdot_prev, np.ndarray):
-            qdot_prev = np.asarray(qdot_prev, dtype=float)
+        xdot = np.asarray(xdot, dtype=float)  # no copy for float arrays (the common case)
+        qdot_prev = np.asarray(qdot_prev, dtype=float)
         shape = state.jacobian.shape
         if xdot.shape != shape[:1] or qdot_prev.shape != shape[1:]:
             wrong_xdot = xdot.shape != shape[:1]

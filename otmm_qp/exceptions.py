@@ -67,8 +67,7 @@ class PluginNotFound(OtmmError):
         elif kind.endswith("s"):
             kind = kind[:-1]
         super().__init__(
-            f"unknown {kind} {name!r}; "
-            f"available: {', '.join(self.available) or '(none)'}"
+            f"unknown {kind} {name!r}; available: {', '.join(self.available) or '(none)'}"
         )
 
 

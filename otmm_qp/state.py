@@ -73,8 +73,7 @@ class KinematicState:
             DimensionError: ``q`` is not of shape ``(nq,)`` or ``weight`` not ``(n,)``.
             NonFiniteState: The Jacobian contains NaN or inf.
         """
-        if not isinstance(q, np.ndarray):
-            q = np.asarray(q, dtype=float)
+        q = np.asarray(q, dtype=float)  # no copy for a float array (the common case)
         if q.shape != (robot.nq,):
             raise DimensionError("q", (robot.nq,), q.shape)
         x, jacobian = robot.kinematics(q)

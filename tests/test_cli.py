@@ -112,7 +112,7 @@ ARM_BAD = {
     ),
     "weight shape": (
         ARM.replace("    q0:", "    task_weight: [1, 1]\n    q0:"),
-        r"experiments.0.task_weight: task_weight: expected shape \(6,\), got \(2,\)",
+        r"experiments.0.task_weight: expected shape \(6,\), got \(2,\)",
     ),
     "q0 outside limits": (
         ARM.replace("-1.8, 0.3", "-1.8, 9.3"),

@@ -10,14 +10,14 @@ import pytest
 
 from otmm_qp import registry
 from otmm_qp.config.load import parse_config
+from otmm_qp.controller import Controller
 from otmm_qp.exceptions import PeerUnavailable, RobotLoadError
 from otmm_qp.peers import models
-from otmm_qp.controller import Controller
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.runner import run_suite
 from otmm_qp.simulation.simulate import simulate
 from otmm_qp.state import KinematicState
-from otmm_qp.runner import run_suite
 
 PEER_ENTRY_POINTS = {
     "pink": "otmm_qp.peers.pink_backend:PinkBackend",

@@ -81,7 +81,11 @@ def record(
     kept: list[tuple[FloatArray, FloatArray, FloatArray]] = []
 
     def keep(
-        k: int, state: KinematicState, command: FloatArray, qdot_prev: FloatArray, _: ControllerOutput
+        k: int,
+        state: KinematicState,
+        command: FloatArray,
+        qdot_prev: FloatArray,
+        _: ControllerOutput,
     ) -> None:
         if k in picks:
             kept.append((state.q.copy(), command.copy(), qdot_prev.copy()))

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from otmm_qp.backends.backend import STATUS_NONFINITE, STATUSES
+from otmm_qp.status import Status
 from otmm_qp.simulation.run_result import RunResult
 
 Metrics = dict[str, float | int | bool | str]
@@ -68,7 +68,7 @@ METRIC_NAMES: tuple[str, ...] = (
     "max_position_excess",
     "velocity_violations",
     "max_velocity_excess",
-    *(f"status_{s}" for s in STATUSES),
+    *(f"status_{s.value}" for s in Status),
     "step_time_median_us",
     "step_time_p99_us",
     "steps",
@@ -125,7 +125,7 @@ def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> M
     out["accel_sign_changes"] = changes
     out["steps_below_sigma_s"] = int(np.count_nonzero(run.sigma_min < settings.sigma_s))
     out["max_weak_speed"] = _safe_max(run.weak_speed)
-    nonfinite = bool(np.count_nonzero(run.status == STATUS_NONFINITE))
+    nonfinite = bool(np.count_nonzero(run.status == Status.NONFINITE))
     out["blow_up"] = nonfinite or bool(np.any(speed > settings.blow_up_speed))
 
     lower, upper = run.position_limits
@@ -135,8 +135,8 @@ def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> M
     speed_excess = np.maximum(np.abs(run.qdot) - run.velocity_limits, 0.0)
     out["velocity_violations"] = int(np.count_nonzero(np.any(speed_excess > 1e-9, axis=1)))
     out["max_velocity_excess"] = _safe_max(speed_excess)
-    for status in STATUSES:
-        out[f"status_{status}"] = int(np.count_nonzero(run.status == status))
+    for status in Status:  # every status, so relaxed and saturated steps show in summaries
+        out[f"status_{status.value}"] = int(np.count_nonzero(run.status == status.value))
     micro = run.step_time * 1e6
     out["step_time_median_us"] = float(np.median(micro)) if micro.size else float("nan")
     out["step_time_p99_us"] = float(np.percentile(micro, 99)) if micro.size else float("nan")

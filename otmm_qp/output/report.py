@@ -437,6 +437,31 @@ def _html_figures(results_dir: Path) -> list[str]:
     return parts
 
 
+def _html_replays(results_dir: Path) -> list[str]:
+    """Links to the replays already written (``otmm-qp replay`` / ``--replay``); GIFs shown inline.
+
+    Replays are linked by relative path rather than embedded: an arm replay holds its meshes
+    (megabytes) and would swamp the report.
+    """
+    from otmm_qp.replay.write import find_replays  # lazy: only reports need it
+
+    replays = find_replays(results_dir)
+    if not replays:
+        return []
+    parts = ['<h2 id="replays">Replays</h2>', "<ul>"]
+    for title, relative in replays:
+        href = html.escape(relative.as_posix(), quote=True)
+        label = html.escape(title)
+        if relative.suffix == ".gif":
+            parts.append(
+                f'<li><a href="{href}">{label}</a><br><img alt="{label}" src="{href}"></li>'
+            )
+        else:
+            parts.append(f'<li><a href="{href}">{label}</a> (3-D replay, opens offline)</li>')
+    parts.append("</ul>")
+    return parts
+
+
 def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
     """The self-contained HTML report."""
     title = f"Comparison report: {results_dir.name}"
@@ -457,6 +482,7 @@ def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> s
         parts.append(f'<div class="claims scroll">{markdown_to_html(claims)}</div>')
     else:
         parts.append('<p class="note">No claims.md in this results folder.</p>')
+    parts += _html_replays(results_dir)
     parts += _html_figures(results_dir)
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

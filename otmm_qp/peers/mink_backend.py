@@ -139,7 +139,7 @@ def _mink_velocity_task(site: str, data: VelocityTaskData, lm_damping: float) ->
     import mujoco
     from mink.tasks import Task
 
-    class MinkVelocityTask(Task):  # type: ignore[misc]
+    class MinkVelocityTask(Task):
         def __init__(self) -> None:
             super().__init__(cost=data.cost, lm_damping=lm_damping)
             self._site_id: int | None = None

@@ -130,7 +130,7 @@ def _pink_velocity_task(frame_id: int, data: VelocityTaskData, lm_damping: float
     """A pink ``Task`` with ``e = −ẋ·dt`` and ``J = S·J_LWA`` (see :mod:`velocity_task`)."""
     from pink.tasks import Task
 
-    class PinkVelocityTask(Task):  # type: ignore[misc]
+    class PinkVelocityTask(Task):
         def __init__(self) -> None:
             super().__init__(cost=data.cost, lm_damping=lm_damping)
 

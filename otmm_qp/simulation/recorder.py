@@ -100,7 +100,7 @@ class RunRecorder:
             dt=dt,
             joint_names=robot.joint_names,
             task_kind=robot.task_kind,
-            t=self.t[:done],
+            t=np.asarray(self.t[:done], dtype=np.float64),
             q=self.q[:done],
             qdot=self.qdot[:done],
             position=np.array(self.position).reshape(done, d),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+
 import numpy as np
 
 from otmm_qp.controller import Controller, ControllerOutput

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import runpy
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -91,9 +93,30 @@ def test_bench_arm_step_script(capsys: pytest.CaptureFixture[str]) -> None:
     assert "median" in capsys.readouterr().out
 
 
+def test_bench_strategies_runs_tiny() -> None:
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench_strategies.py"), "--steps", "20"]
+        + ["--rounds", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    rows = {line.split()[0] for line in done.stdout.splitlines() if line.strip()}
+    assert {"otmm+pinv", "otmm-directional+pinv", "jparse", "sns", "manipulability"} <= rows
+
+
 def test_every_benchmark_script_and_example_is_tested() -> None:
+    # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py.
     scripts = {p.name for p in (ROOT / "benchmarks").glob("*.py")}
-    assert scripts <= {"bench_step.py", "bench_arm_step.py", "bench_qp_session.py"}
+    assert scripts <= {
+        "bench_step.py",
+        "bench_arm_step.py",
+        "bench_qp_session.py",
+        "bench_strategies.py",
+        "bench_study.py",
+    }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py
 

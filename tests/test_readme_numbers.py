@@ -1,0 +1,43 @@
+"""The numbers the README publishes for the planar study are what the shipped command produces."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from otmm_qp.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _readme_rows() -> dict[str, list[str]]:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("otmm-qp study configs/studies/planar.yaml --workers 2") :]
+    section = section[: section.index("\n\n", section.index("| controller |"))]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if len(cells) == 5 and cells[0] not in ("controller",) and not cells[0].startswith("-"):
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+@pytest.mark.slow
+def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> None:
+    readme = _readme_rows()
+    assert len(readme) == 5
+    out = tmp_path / "planar-study"
+    status = main(["study", str(ROOT / "configs/studies/planar.yaml"), "--out", str(out)]
+                  + ["--workers", "1"])  # fmt: skip
+    assert status == 0, capsys.readouterr().err
+    report = (out / "study_report.md").read_text(encoding="utf-8")
+    pooled = report[report.index("## All robots") :]
+    pooled = pooled[: pooled.index("\n## ", 5)]
+    for controller, (success, max_error, peak, jump) in readme.items():
+        line = next(row for row in pooled.splitlines() if row.startswith(f"| {controller} |"))
+        assert success in line, (controller, line)
+        for value in (max_error, peak, jump):
+            # The README shows the median; the report adds its bootstrap interval after it.
+            assert re.search(rf"\| {re.escape(value)} \[", line), (controller, value, line)

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from otmm_qp.status import Status
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.status import Status
 
 Metrics = dict[str, float | int | bool | str]
 

@@ -185,18 +185,9 @@ class NearSingularGenerator(TaskGenerator):
                 start, list(centre), radius, period, direction, turns=turns, profile="quintic"
             )
         normal = np.cross(-b, a)  # counterclockwise about this normal moves along +a at c
-        if np.asarray(start).ndim == 2:
-            return PoseCircleTrajectory(
-                start,
-                list(centre),
-                radius,
-                period,
-                "counterclockwise",
-                normal=list(normal),
-                turns=turns,
-                profile="quintic",
-            )
-        return CircleTrajectory(
+        # Same arc either way; a pose start also carries its orientation along.
+        arc = PoseCircleTrajectory if np.asarray(start).ndim == 2 else CircleTrajectory
+        return arc(
             start,
             list(centre),
             radius,

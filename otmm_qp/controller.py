@@ -9,10 +9,11 @@ from typing import NamedTuple
 import numpy as np
 
 from otmm_qp.backends.backend import STATUS_NONFINITE, Backend, BackendOutput
-from otmm_qp.exceptions import DimensionError
+from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import DIVERGENCE_SPEED, classify_divergence
 
 
 class ControllerOutput(NamedTuple):
@@ -41,12 +42,23 @@ class Controller:
         name: Label used in results.
         filters: Task filters applied in order.
         backend: The inversion backend.
+        divergence_speed: Joint speed [rad/s] above which a solved step is reported
+            ``diverging`` whatever the backend (see :mod:`otmm_qp.status`), > 0.
     """
 
-    def __init__(self, name: str, filters: Sequence[TaskFilter], backend: Backend) -> None:
+    def __init__(
+        self,
+        name: str,
+        filters: Sequence[TaskFilter],
+        backend: Backend,
+        divergence_speed: float = DIVERGENCE_SPEED,
+    ) -> None:
+        if not divergence_speed > 0.0:  # also refuses NaN
+            raise ParameterError("divergence_speed", f"must be > 0 [rad/s], got {divergence_speed}")
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
+        self.divergence_speed = float(divergence_speed)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Prepare for a run on ``robot`` with period ``dt`` [s]."""
@@ -67,7 +79,8 @@ class Controller:
         """Compute ``q̇`` for the physical command ``xdot`` (n,) at ``state``.
 
         Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
-        so NaN/inf never leave a step.
+        so NaN/inf never leave a step; a solved step faster than ``divergence_speed`` is
+        reported ``diverging``.
 
         Raises:
             DimensionError: ``xdot`` is not of shape ``(n,)`` or ``qdot_prev`` not ``(nv,)``.
@@ -91,8 +104,13 @@ class Controller:
         result = self.backend.solve(state, weighted, qdot_prev)
         qdot = result.qdot
         # One dot product: NaN/inf (or |q̇| beyond 1e154) make it non-finite.
-        if not math.isfinite(float(qdot @ qdot)):
+        speed_squared = float(qdot @ qdot)
+        if not math.isfinite(speed_squared):
             qdot = np.zeros_like(qdot_prev)
             result = result._replace(qdot=qdot, status=STATUS_NONFINITE)
+        else:
+            status = classify_divergence(result.status, speed_squared, qdot, self.divergence_speed)
+            if status is not result.status:
+                result = result._replace(status=status)
         filtered = weighted if unit else weighted / state.weight
         return ControllerOutput(qdot, filtered, tuple(reports), result)

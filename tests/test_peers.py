@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 from importlib import metadata
 from typing import Any
 
@@ -12,6 +13,7 @@ from otmm_qp import registry
 from otmm_qp.config.load import parse_config
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import PeerUnavailable, RobotLoadError
+from otmm_qp.output.report import read_summary
 from otmm_qp.peers import models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
@@ -147,8 +149,12 @@ def test_missing_peer_is_skipped_with_hint(
     outcome = run_suite(suite, tmp_path, progress=None)
     assert [r.result.controller for r in outcome.records] == ["pinv"]
     assert [s.name for _, s in outcome.skipped] == ["pink"]
-    summary = (tmp_path / "summary.csv").read_text()
-    assert "skipped: peer 'pink' is not installed" in summary
+    with (tmp_path / "summary.csv").open(newline="") as handle:
+        rows = {row["controller"]: row for row in csv.DictReader(handle)}
+    assert rows["pink"]["outcome"] == "skipped" and rows["pinv"]["outcome"] == "completed"
+    assert rows["pink"]["error_message"].startswith("peer 'pink' is not installed")
+    report_rows = {r.controller: r for r in read_summary(tmp_path / "summary.csv")}
+    assert report_rows["pink"].skipped and not report_rows["pinv"].skipped  # read from the column
     assert outcome.errors == []
 
 

@@ -1,4 +1,5 @@
-"""Status: one enum, old names as aliases, and `saturated` for every unconstrained backend."""
+"""Status: one enum, old names as aliases, `saturated` for every unconstrained backend and
+`diverging` for every controller, limits or not."""
 
 from __future__ import annotations
 
@@ -6,10 +7,12 @@ import numpy as np
 import pytest
 
 from otmm_qp.backends import backend as backend_module
-from otmm_qp.backends.backend import Backend
+from otmm_qp.backends.backend import Backend, BackendOutput
+from otmm_qp.controller import Controller
+from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
-from otmm_qp.status import Status, exceeds_speed_limits
+from otmm_qp.status import DIVERGENCE_SPEED, Status, classify_divergence, exceeds_speed_limits
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend
 from otmm_qp_controllers.dls_adaptive import AdaptiveDampedLeastSquaresBackend
 from otmm_qp_controllers.dls_sigma import SigmaDampedLeastSquaresBackend
@@ -110,3 +113,46 @@ def test_damping_is_the_factor_lambda(backend: Backend, expected: float | None) 
     assert lam > 0.0 and (expected is None or lam == pytest.approx(expected))
     reference = jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + lam**2 * np.eye(2), xdot)
     np.testing.assert_allclose(out.qdot, reference, rtol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(UNCONSTRAINED))
+def test_every_controller_reports_diverging_without_speed_limits(name: str) -> None:
+    """A limitless arm spinning at > 100 rad/s is ``diverging``, not ``ok`` (E2's pinv)."""
+    state = KinematicState.compute(UNLIMITED, NEAR_SINGULAR)
+    controller = Controller(name, [], UNCONSTRAINED[name]())
+    controller.bind(UNLIMITED, DT)
+    fast = controller.step(state, 0.5 * state.U[:, -1] + 200.0 * state.U[:, 0], np.zeros(2))
+    speed = float(np.abs(fast.qdot).max())
+    assert (fast.backend.status == Status.DIVERGING) == (speed > DIVERGENCE_SPEED)
+    if name != "sdls":  # sdls clamps the weak direction's share (γ_max): 93 rad/s here
+        assert speed > DIVERGENCE_SPEED
+    slow = controller.step(state, 1e-3 * state.U[:, 0], np.zeros(2))
+    assert slow.backend.status == Status.OK
+
+
+def test_diverging_threshold_is_the_infinity_norm() -> None:
+    """Just above/below q̇_div on one joint of many: the 2-norm pre-test never decides alone."""
+    below = np.full(9, 99.0)  # ‖·‖₂ = 297 > 100 but ‖·‖∞ = 99
+    assert classify_divergence(Status.OK, float(below @ below), below, 100.0) == Status.OK
+    above = np.zeros(9)
+    above[4] = -100.0 * (1 + 1e-12)
+    assert classify_divergence(Status.BOUNDED, float(above @ above), above, 100.0) == "diverging"
+    # Statuses that already say the solution is not usable keep their word.
+    for status in (Status.INFEASIBLE, Status.RELAXED):
+        assert classify_divergence(status, float(above @ above), above, 100.0) == status
+
+
+def test_diverging_speed_is_configurable_and_validated() -> None:
+    class Constant(Backend):
+        def solve(
+            self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
+        ) -> BackendOutput:
+            return BackendOutput(np.array([3.0, 0.0]))
+
+    state = KinematicState.compute(UNLIMITED, NEAR_SINGULAR)
+    strict = Controller("c", [], Constant(), divergence_speed=2.0)
+    strict.bind(UNLIMITED, DT)
+    assert strict.step(state, np.zeros(2), np.zeros(2)).backend.status == Status.DIVERGING
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ParameterError, match="divergence_speed"):
+            Controller("c", [], Constant(), divergence_speed=bad)

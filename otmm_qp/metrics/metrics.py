@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.simulation.run_result import RunResult
-from otmm_qp.status import Status
+from otmm_qp.status import DIVERGENCE_SPEED, Status
 
 Metrics = dict[str, float | int | bool | str]
 
@@ -43,7 +43,7 @@ class MetricSettings:
 
     sigma_s: float = 0.05
     window: float = 1.0
-    blow_up_speed: float = 100.0
+    blow_up_speed: float = DIVERGENCE_SPEED
 
 
 METRIC_NAMES: tuple[str, ...] = (

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text
+from otmm_qp.output.summary import RunOutcome
 
 #: The objectives, all minimised.
 OBJECTIVES: tuple[str, ...] = ("max_error_window", "max_joint_speed", "max_jump")
@@ -76,7 +77,7 @@ def read_summary(path: Path) -> list[Entry]:
         ]
         if missing:
             raise OtmmError(f"{path}: missing column(s) {', '.join(missing)}")
-        if (row.get("error_message") or "").startswith("skipped"):
+        if row.get("outcome") == RunOutcome.SKIPPED:
             continue
         try:
             values = tuple(float(row[c]) for c in OBJECTIVES)

@@ -39,6 +39,7 @@ from pathlib import Path
 
 from otmm_qp.exceptions import ConfigError, OutputPathError
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
+from otmm_qp.output.summary import RunOutcome
 
 #: ``(column, label, format)`` shown per scenario; every column is lower-is-better.
 REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = (
@@ -86,11 +87,12 @@ class Row:
     stuck_steps: int = 0
     steps: int = 0
     relaxed_steps: int = 0
+    outcome: str = RunOutcome.COMPLETED
 
     @property
     def skipped(self) -> bool:
-        """The controller was skipped (a missing peer)."""
-        return self.error_message.startswith("skipped:")
+        """The controller was skipped (a missing peer): the ``outcome`` column says so."""
+        return self.outcome == RunOutcome.SKIPPED
 
     @property
     def stuck(self) -> bool:
@@ -167,6 +169,7 @@ def _row(record: dict[str, str | None]) -> Row:
         _count(cell("status_stuck")),
         _count(cell("steps")),
         sum(_count(cell(f"status_{status}")) for status in RELAXED_STATUSES),
+        cell("outcome") or (RunOutcome.STOPPED if cell("error_message") else RunOutcome.COMPLETED),
     )
 
 
@@ -248,7 +251,8 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
         lines.append("|---|" + "---:|" * len(REPORT_COLUMNS))
         for row in group:
             if row.skipped:
-                cells = [row.controller, row.error_message] + [""] * (len(REPORT_COLUMNS) - 1)
+                cells = [row.controller, f"skipped: {row.error_message}"]
+                cells += [""] * (len(REPORT_COLUMNS) - 1)
                 lines.append("| " + " | ".join(cells) + " |")
                 continue
             cells = [row.controller + _status_note(row)]
@@ -370,7 +374,7 @@ def _html_row(row: Row, best: dict[str, float]) -> str:
         return (
             f'<tr data-controller="{controller}"><td>{controller}</td>'
             f'<td class="skip" colspan="{len(REPORT_COLUMNS)}">'
-            f"{html.escape(row.error_message)}</td></tr>"
+            f"skipped: {html.escape(row.error_message)}</td></tr>"
         )
     note = html.escape(_status_note(row))
     cells = [f'<td class="name">{controller}{note}</td>']

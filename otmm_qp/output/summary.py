@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import enum
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -10,6 +11,19 @@ from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
 from otmm_qp.output.paths import atomic_open, atomic_write_text
 
 ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
+
+
+class RunOutcome(str, enum.Enum):
+    """How a summary row's run ended: the ``outcome`` column (never parsed from a message)."""
+
+    COMPLETED = "completed"  #: ran every step
+    STOPPED = "stopped"  #: stopped early; ``error_message`` says why
+    SKIPPED = "skipped"  #: never ran (an optional peer library is missing); the message says why
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+
 #: Columns shown in the Markdown table (the CSV has all of them).
 MARKDOWN_COLUMNS = (
     ("max_error", "max err [m]", ".2e"),
@@ -28,19 +42,28 @@ MARKDOWN_COLUMNS = (
 
 
 def summary_row(
-    identity: dict[str, str], metrics: Metrics, error_message: str | None
+    identity: dict[str, str],
+    metrics: Metrics,
+    error_message: str | None,
+    outcome: RunOutcome | None = None,
 ) -> dict[str, object]:
-    """One CSV row: identity columns, every metric, then the error message (empty if none)."""
+    """One CSV row: identity columns, every metric, the outcome, then the message (or empty).
+
+    ``outcome`` defaults to ``stopped`` when there is a message, else ``completed``.
+    """
     row: dict[str, object] = dict(identity)
     for name in METRIC_NAMES:
         row[name] = metrics.get(name, "")
+    if outcome is None:
+        outcome = RunOutcome.STOPPED if error_message else RunOutcome.COMPLETED
+    row["outcome"] = outcome
     row["error_message"] = error_message or ""
     return row
 
 
 def write_summary_csv(rows: Sequence[dict[str, object]], path: Path) -> None:
     """Write ``summary.csv`` with a stable column order."""
-    columns = [*ID_COLUMNS, *METRIC_NAMES, "error_message"]
+    columns = [*ID_COLUMNS, *METRIC_NAMES, "outcome", "error_message"]
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(path, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
@@ -50,6 +73,8 @@ def write_summary_csv(rows: Sequence[dict[str, object]], path: Path) -> None:
 
 
 def _csv_value(value: object) -> object:
+    if isinstance(value, enum.Enum):
+        return str(value)
     if isinstance(value, float):
         return f"{value:.9g}"
     return value
@@ -84,7 +109,7 @@ def write_summary_markdown(rows: Sequence[dict[str, object]], path: Path, title:
             cells = [str(row["controller"])]
             cells += [_format(row.get(key, ""), spec) for key, _, spec in MARKDOWN_COLUMNS]
             if row.get("error_message"):
-                cells[0] += f" (stopped: {row['error_message']})"
+                cells[0] += f" ({row.get('outcome', RunOutcome.STOPPED)}: {row['error_message']})"
             lines.append("| " + " | ".join(cells) + " |")
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, "\n".join(lines) + "\n")

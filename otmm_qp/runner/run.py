@@ -12,7 +12,12 @@ from typing import TextIO
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
 from otmm_qp.output.paths import ensure_inside, safe_name, unique_names
-from otmm_qp.output.summary import summary_row, write_summary_csv, write_summary_markdown
+from otmm_qp.output.summary import (
+    RunOutcome,
+    summary_row,
+    write_summary_csv,
+    write_summary_markdown,
+)
 from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import PreparedExperiment, SkippedController, prepare_experiment
 from otmm_qp.simulation.run_result import RunResult
@@ -224,4 +229,4 @@ def _skipped_row(experiment: str, loop_mode: str, skip: SkippedController) -> di
         "filters": skip.filters,
         "backend": skip.backend,
     }
-    return summary_row(identity, {"steps": 0, "completed": False}, f"skipped: {skip.reason}")
+    return summary_row(identity, {"steps": 0, "completed": False}, skip.reason, RunOutcome.SKIPPED)

@@ -192,9 +192,9 @@ class QpBackend(BoxQpBackend):
         """The optimum under the box: the fast path when it applies, else the QP."""
         if self.fast_path:
             candidate = self.unconstrained(state, xdot, posture)
-            lower, upper = self.bounds
-            if np.all(candidate >= lower) and np.all(candidate <= upper):  # False for NaN
-                return candidate, self.classify(candidate, 1e-9)
+            status = self.inside_status(candidate, 1e-9)  # None outside the box or for NaN
+            if status is not None:
+                return candidate, status
         data = build_qp(
             state.task_jacobian, xdot, self.damping, self.bounds, self.posture_weight, posture,
             out=self._data,

@@ -138,8 +138,14 @@ class BoxQpBackend(Backend):
         )  # fmt: skip
 
     def classify(self, qdot: FloatArray, tol: float) -> Status:
-        """``bounded`` when some ``q̇_i`` is within ``tol·(1 + |bound|)`` of a bound, else ``ok``."""
+        """``bounded`` when some ``q̇_i`` is within ``tol·(1 + |bound|)`` of (or beyond) a bound."""
+        return self.inside_status(qdot, tol) or Status.BOUNDED
+
+    def inside_status(self, qdot: FloatArray, tol: float) -> Status | None:
+        """:meth:`classify` for ``qdot`` inside the box; None when it is outside (or NaN)."""
         active = active_bound(qdot, self.bounds, tol, self._active_scratch)
+        if active is None:
+            return None
         return Status.BOUNDED if active else Status.OK
 
     def fallback(

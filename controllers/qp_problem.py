@@ -251,23 +251,32 @@ def velocity_box(
 
 def active_bound(
     qdot: FloatArray, bounds: FloatArray, tol: float, scratch: FloatArray | None = None
-) -> bool:
+) -> bool | None:
     r"""Whether some :math:`\dot q_i` is within ``tol·(1 + |bound|)`` of ``lb_i`` or ``ub_i``.
+
+    .. math:: \exists i:\ \dot q_i - lb_i \le \tau(1 + |lb_i|)\ \lor\
+              ub_i - \dot q_i \le \tau(1 + |ub_i|)
 
     Args:
         qdot: Joint velocity [rad/s], shape ``(nv,)``.
         bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
-        tol: Relative tolerance [-].
+        tol: Relative tolerance τ [-].
         scratch: Work array of shape ``(2, 2, nv)``; allocated when None.
+
+    Returns:
+        The answer, or None when ``qdot`` lies outside the box (or is NaN): one pass over the
+        margins serves the QP's fast path (inside?) and the status (active?).
     """
     work = np.empty((2,) + bounds.shape) if scratch is None else scratch
     margins, threshold = work[0], work[1]
     np.subtract(qdot, bounds[0], out=margins[0])  # q̇ − lb
     np.subtract(bounds[1], qdot, out=margins[1])  # ub − q̇
+    if not (margins >= 0.0).all():  # also False for NaN
+        return None
     np.abs(bounds, out=threshold)
     np.add(1.0, threshold, out=threshold)
     np.multiply(tol, threshold, out=threshold)
-    return bool(np.less_equal(margins, threshold).any())
+    return bool((margins <= threshold).any())
 
 
 def build_qp(

@@ -3,7 +3,6 @@ computed first, nothing is written outside --out, and earlier results survive.""
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -11,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from otmm_qp.cli import main
+from otmm_qp.output import paths as paths_module
 
 GOOD = """
 name: tiny
@@ -297,18 +297,34 @@ def test_report_flags_relaxed_bounds(tmp_path: Path) -> None:
     assert "bound relaxed/infeasible on 7 steps" in (out / "report.md").read_text()
 
 
-def test_report_on_read_only_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    if os.geteuid() == 0:
-        pytest.skip("root ignores file permissions")  # pragma: no cover
+def test_report_on_read_only_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A folder the report cannot write to: exit 2, one line, the run's files untouched.
+
+    Root ignores file modes, so the refusal is made where every write goes through
+    (``tempfile.mkstemp`` in the atomic writer) as well as by the mode bits.
+    """
     config = tmp_path / "c.yaml"
     config.write_text(GOOD)
     out = tmp_path / "out"
     assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    summary_before = (out / "summary.csv").read_bytes()
+    capsys.readouterr()
+
+    def refuse(*args: object, **kwargs: object) -> tuple[int, str]:
+        raise PermissionError(13, "Permission denied", str(out))
+
+    monkeypatch.setattr(paths_module.tempfile, "mkstemp", refuse)
     out.chmod(0o555)
     try:
         assert main(["report", str(out)]) == 2
     finally:
         out.chmod(0o755)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Permission denied" in err[0] and "Traceback" not in err[0]
+    assert (out / "summary.csv").read_bytes() == summary_before
+    assert not list(out.glob(".*.tmp"))
 
 
 def test_config_loop_modes_match_the_simulation() -> None:

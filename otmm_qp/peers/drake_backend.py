@@ -14,9 +14,8 @@ from otmm_qp.backends.backend import (
     BackendOutput,
 )
 from otmm_qp.exceptions import ParameterError
-from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, planar_urdf, root_link
+from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, root_link
 from otmm_qp.peers.peer_backend import PeerBackend, check_limit_gain, require
-from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -37,9 +36,10 @@ class DrakeBackend(PeerBackend):
     basis of the Jacobian null space. A tiny realisable fraction α is reported by Drake as
     ``stuck``; no solution as ``infeasible`` (zero joint speed).
 
-    The plant is parsed from the arm's URDF (generated for a :class:`PlanarArm`, rewritten by
-    :func:`~otmm_qp.peers.models.peer_urdf` for a :class:`PinocchioArm`), its root link
-    welded to the world. The end-effector frame is added at the Pinocchio frame placement.
+    The plant is parsed from the URDF of the robot's peer description, rewritten by
+    :func:`~otmm_qp.peers.models.peer_urdf` (kinematics only), its root link welded to the
+    world. The end-effector frame is added at the Pinocchio frame placement
+    (:func:`~otmm_qp.peers.models.pinocchio_model`).
 
     Args:
         stuck_scaling: α below which Drake reports ``stuck``, in ``[0, 1)``.
@@ -72,8 +72,8 @@ class DrakeBackend(PeerBackend):
         tree: Any = importlib.import_module("pydrake.multibody.tree")
 
         super().bind(robot, dt)
-        pin_model, frame_id = pinocchio_model(robot)
-        urdf = planar_urdf(robot) if isinstance(robot, PlanarArm) else peer_urdf(robot, False)
+        pin_model, frame_id = pinocchio_model(self.description)
+        urdf = peer_urdf(self.description, keep_geometry=False)
         plant = plants.MultibodyPlant(time_step=0.0)
         parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
         base = root_link(urdf)
@@ -109,14 +109,11 @@ class DrakeBackend(PeerBackend):
         v_max[self._map.velocity_index] = robot.velocity_limits
         parameters.set_joint_velocity_limits((-v_max, v_max))
         parameters.set_maximum_scaling_to_report_stuck(self.stuck_scaling)
-        # Flags over (ωx, ωy, ωz, vx, vy, vz): the rows the task commands.
-        if isinstance(robot, PlanarArm):
-            flags = [False, False, False, True, True, False]
-        elif robot.task_kind == "pose":
-            flags = [True] * 6
-        else:
-            flags = [False, False, False, True, True, True]
-        parameters.set_end_effector_velocity_flag(flags)
+        # Drake orders a twist (ωx, ωy, ωz, vx, vy, vz); our rows index (v, ω).
+        self._twist_index = (self.task_rows + 3) % 6
+        flags = np.zeros(6, dtype=bool)
+        flags[self._twist_index] = True
+        parameters.set_end_effector_velocity_flag(flags.tolist())
         self._parameters = parameters
         self._ik = ik
         self._status = ik.DifferentialInverseKinematicsStatus
@@ -132,13 +129,10 @@ class DrakeBackend(PeerBackend):
         q_low[index] = theta - gain * (theta - self._lower)  # ±inf stays ±inf
         q_high[index] = theta + gain * (self._upper - theta)
         self._parameters.set_joint_position_limits((q_low, q_high))
-        linear, angular = self.spatial_velocity(self.robot, self.physical_velocity(state, xdot))
+        twist = np.zeros(6)  # V_WE = (ω, v), world axes
+        twist[self._twist_index] = self.physical_velocity(state, xdot)
         result = self._ik.DoDifferentialInverseKinematics(
-            self._plant,
-            self._context,
-            np.concatenate([angular, linear]),  # V_WE = (ω, v), world axes
-            self._frame,
-            self._parameters,
+            self._plant, self._context, twist, self._frame, self._parameters
         )
         if result.status == self._status.kNoSolutionFound or result.joint_velocities is None:
             return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)

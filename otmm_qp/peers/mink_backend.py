@@ -8,9 +8,15 @@ import numpy as np
 
 from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
-from otmm_qp.peers.models import JointMap, mujoco_joint_map, mujoco_model, pose_mismatch
+from otmm_qp.peers.models import (
+    JointMap,
+    PinocchioPeerModel,
+    model_mismatch,
+    mujoco_joint_map,
+    mujoco_model,
+)
 from otmm_qp.peers.peer_backend import PeerBackend, require
-from otmm_qp.peers.velocity_task import VelocityTaskData, task_rows
+from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -29,8 +35,9 @@ class MinkBackend(PeerBackend):
     (:mod:`otmm_qp.peers.velocity_task`): ``qp``'s problem with ``λ = μ``. The MuJoCo model's
     joint ranges are the robot's effective limits (overrides included).
 
-    The MuJoCo model is generated (:func:`~otmm_qp.peers.models.planar_mjcf`, in radians)
-    for a planar arm or loaded from the arm's URDF with ``package://`` paths rewritten
+    The MuJoCo model is the MJCF of the robot's peer description when it has one (planar
+    arms: :func:`~otmm_qp.robots.planar_arm.planar_mjcf`, in radians) or loaded from the
+    description's URDF with ``package://`` paths rewritten
     (:func:`~otmm_qp.peers.models.mujoco_model`). At :meth:`bind` Pinocchio and MuJoCo must
     agree on the end-effector pose at the joint-limit midpoint (or 0.3 rad per joint when
     unbounded) within :data:`POSE_TOLERANCE`.
@@ -71,21 +78,22 @@ class MinkBackend(PeerBackend):
         import mink
 
         super().bind(robot, dt)
+        pinocchio = PinocchioPeerModel.create(self.description, robot)
+        model, site = mujoco_model(self.description, (pinocchio.model, pinocchio.frame_id))
         lower, upper = robot.position_limits
         bounded = np.isfinite(lower) & np.isfinite(upper)
         probe = np.full(robot.nv, 0.3)  # [rad]
         probe[bounded] = 0.5 * (lower[bounded] + upper[bounded])
-        e_p, e_r = pose_mismatch(robot, probe)
+        e_p, e_r = model_mismatch(robot, pinocchio, (model, site), probe)
         if e_p > POSE_TOLERANCE or e_r > POSE_TOLERANCE:
             raise PeerModelMismatch("mink", e_p, e_r)
-        model, site = mujoco_model(robot)
         self._mink = mink
         self._site = site
         self._map = mujoco_joint_map(robot, model)
         write_position_limits(model, robot, self._map)
         self._qpos0 = np.array(model.qpos0)
         self._configuration = mink.Configuration(model)
-        self._data = VelocityTaskData(task_rows(robot))
+        self._data = VelocityTaskData(self.task_rows)
         self._task = _mink_velocity_task(site, self._data, self.lm_damping)
         self._limits: list[Any] = []
         if self.use_limits:

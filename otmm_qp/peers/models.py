@@ -1,19 +1,24 @@
-r"""One robot, three modelling libraries: URDF/MJCF generation and URDF rewriting for peers.
+r"""One robot, three modelling libraries: each peer's model built from a robot's description.
 
-A peer must control *the same* arm as our own backends. This module builds each peer's
-model from the robot the experiment already loaded:
+A peer must control *the same* arm as our own backends. It never looks at the robot's class:
+it asks the robot for a :class:`~otmm_qp.robots.peer_description.PeerDescription`
+(:meth:`Robot.peer_description <otmm_qp.robots.robot.Robot.peer_description>`, once, at
+bind time; :func:`describe` checks it against the robot) and builds from it:
 
-* :class:`~otmm_qp.robots.planar_arm.PlanarArm` → a generated URDF (Pinocchio for pink,
-  Drake) or MJCF (MuJoCo for mink). Joint ``i`` rotates about the world ``z`` axis, link ``i``
-  runs along the local ``x`` axis with length ``l_i`` [m], and the end-effector frame ``ee``
-  sits at the tip, so the frame's ``(x, y)`` equals :meth:`PlanarArm.forward`.
-* :class:`~otmm_qp.robots.pinocchio_arm.PinocchioArm` → its own reduced ``pin.Model`` (pink),
-  or its URDF rewritten (Drake, MuJoCo): ``package://`` URIs resolved against
-  ``robot.package_dirs``, joints that the reduced model locked turned ``fixed`` (at 0),
-  meshes MuJoCo cannot read dropped.
+* Pinocchio (pink; frame placement for mink and Drake): the description's own
+  ``pinocchio_model`` when given (a :class:`~otmm_qp.robots.pinocchio_arm.PinocchioArm`'s
+  reduced model), else a model parsed from :func:`peer_urdf` — see
+  :class:`PinocchioPeerModel` for how our coordinates map into it;
+* MuJoCo (mink): the description's ``mjcf`` when given (planar arms), else :func:`peer_urdf`
+  with a site :data:`MUJOCO_SITE` at the end-effector frame (:func:`mujoco_model`);
+* Drake: :func:`peer_urdf` without geometry.
 
-Joint ordering differs between libraries, so every peer maps by joint name through
-:class:`JointMap`.
+:func:`peer_urdf` rewrites the description's URDF for another library: ``package://`` URIs
+resolved against its ``package_dirs``, movable joints that are not the robot's turned
+``fixed`` (at 0), meshes a library cannot read dropped.
+
+Joint ordering differs between libraries, so every peer maps by joint name (:class:`JointMap`,
+:class:`PinocchioPeerModel`).
 """
 
 from __future__ import annotations
@@ -27,114 +32,68 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from otmm_qp.exceptions import RobotLoadError
-from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.exceptions import FrameNotFound, RobotLoadError
+from otmm_qp.peers.velocity_task import task_rows
+from otmm_qp.robots.peer_description import PeerDescription
+from otmm_qp.robots.planar_arm import PLANAR_FRAME, planar_mjcf, planar_urdf
 from otmm_qp.robots.robot import FloatArray, Robot
 
-#: Name of the end-effector frame (URDF link) / site (MJCF) of generated planar models.
-PLANAR_FRAME = "ee"
+__all__ = [
+    "MUJOCO_MESH_FORMATS",
+    "MUJOCO_SITE",
+    "PLANAR_FRAME",
+    "JointMap",
+    "PinocchioPeerModel",
+    "describe",
+    "model_mismatch",
+    "mujoco_joint_map",
+    "mujoco_model",
+    "mujoco_site_pose",
+    "peer_urdf",
+    "pinocchio_frame_pose",
+    "pinocchio_model",
+    "planar_mjcf",
+    "planar_urdf",
+    "pose_mismatch",
+    "resolve_package_uri",
+    "root_link",
+]
+
 #: Name of the MuJoCo site added at the end-effector frame of a URDF arm.
 MUJOCO_SITE = "otmm_ee"
 #: Mesh formats MuJoCo loads; geometry in other formats (e.g. ``.dae``) is dropped.
 MUJOCO_MESH_FORMATS = (".stl", ".obj", ".msh")
 
 
-def _fmt(value: float) -> str:
-    return f"{value:.17g}"
+def describe(robot: Robot) -> PeerDescription:
+    """The robot's :class:`PeerDescription`, checked against the robot.
 
-
-def planar_urdf(arm: PlanarArm) -> str:
-    r"""URDF text of a planar arm, base fixed at the world origin.
-
-    Joint ``i`` sits at the tip of link ``i−1`` (``origin xyz = (l_{i-1}, 0, 0)``) and turns
-    about ``z``; finite limits give ``revolute`` joints, unbounded ones ``continuous``.
-    Links get a unit point mass (Drake rejects massless bodies in some checks).
-
-    Args:
-        arm: The planar arm; lengths [m], limits [rad], speed limits [rad/s].
-
-    Returns:
-        URDF XML; the end-effector link is ``ee`` (:data:`PLANAR_FRAME`).
+    Raises:
+        RobotLoadError: The robot does not implement ``peer_description`` (the base class's
+            one-line message), its joint names differ from ``robot.joint_names``, or the
+            task the description implies (planar xy, position, pose) does not have
+            ``robot.task_dim`` rows.
     """
-    lower, upper = arm.position_limits
-    speeds = arm.velocity_limits
-    inertial = (
-        '<inertial><mass value="1"/><origin xyz="0 0 0"/>'
-        '<inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>'
-    )
-    lines = [f'<robot name="{arm.name}">', f'  <link name="base">{inertial}</link>']
-    parent, offset = "base", 0.0
-    for i, name in enumerate(arm.joint_names):
-        bounded = bool(np.isfinite(lower[i]) and np.isfinite(upper[i]))
-        speed = _fmt(float(speeds[i])) if np.isfinite(speeds[i]) else "0"
-        limit = (
-            f'<limit lower="{_fmt(lower[i])}" upper="{_fmt(upper[i])}" effort="0" '
-            f'velocity="{speed}"/>'
-            if bounded
-            else f'<limit effort="0" velocity="{speed}"/>'
+    description = robot.peer_description()
+    if description.joint_names != tuple(robot.joint_names):
+        raise RobotLoadError(
+            f"robot {robot.name!r}: peer_description().joint_names "
+            f"{list(description.joint_names)} differ from robot.joint_names "
+            f"{list(robot.joint_names)}"
         )
-        child = f"link{i + 1}"
-        lines += [
-            f'  <link name="{child}">{inertial}</link>',
-            f'  <joint name="{name}" type="{"revolute" if bounded else "continuous"}">',
-            f'    <parent link="{parent}"/><child link="{child}"/>',
-            f'    <origin xyz="{_fmt(offset)} 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/>',
-            f"    {limit}",
-            "  </joint>",
-        ]
-        parent, offset = child, float(arm.link_lengths[i])
-    lines += [
-        f'  <link name="{PLANAR_FRAME}">{inertial}</link>',
-        f'  <joint name="{PLANAR_FRAME}_joint" type="fixed">',
-        f'    <parent link="{parent}"/><child link="{PLANAR_FRAME}"/>',
-        f'    <origin xyz="{_fmt(offset)} 0 0" rpy="0 0 0"/>',
-        "  </joint>",
-        "</robot>",
-    ]
-    return "\n".join(lines) + "\n"
-
-
-def planar_mjcf(arm: PlanarArm) -> str:
-    r"""MJCF text of a planar arm, in radians.
-
-    MJCF reads angles in *degrees* unless ``<compiler angle="radian"/>``; the joint ranges
-    here are radians, so the compiler flag is set. Hinges turn about ``z``; unbounded joints
-    are ``limited="false"``. The end-effector site is ``ee`` (:data:`PLANAR_FRAME`).
-
-    Args:
-        arm: The planar arm; lengths [m], limits [rad].
-
-    Returns:
-        MJCF XML.
-    """
-    lower, upper = arm.position_limits
-    lines = [
-        f'<mujoco model="{arm.name}">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        '  <option integrator="Euler" gravity="0 0 0"/>',
-        "  <worldbody>",
-    ]
-    offset, depth = 0.0, 2
-    for i, name in enumerate(arm.joint_names):
-        pad = "  " * depth
-        bounded = bool(np.isfinite(lower[i]) and np.isfinite(upper[i]))
-        limit = (
-            f'limited="true" range="{_fmt(lower[i])} {_fmt(upper[i])}"'
-            if bounded
-            else 'limited="false"'
+    rows = task_rows(description.planar, robot.task_kind)
+    if rows.size != robot.task_dim:
+        raise RobotLoadError(
+            f"robot {robot.name!r}: a peer commands {rows.size} task rows (planar="
+            f"{description.planar}, task_kind={robot.task_kind!r}) but task_dim is "
+            f"{robot.task_dim}"
         )
-        length = float(arm.link_lengths[i])
-        lines += [
-            f'{pad}<body name="link{i + 1}" pos="{_fmt(offset)} 0 0">',
-            f'{pad}  <joint name="{name}" type="hinge" axis="0 0 1" {limit}/>',
-            f'{pad}  <geom type="capsule" fromto="0 0 0 {_fmt(length)} 0 0" size="0.02" mass="1"/>',
-        ]
-        offset, depth = length, depth + 1
-    lines.append(f'{"  " * depth}<site name="{PLANAR_FRAME}" pos="{_fmt(offset)} 0 0"/>')
-    for level in range(depth - 1, 1, -1):
-        lines.append(f"{'  ' * level}</body>")
-    lines += ["  </worldbody>", "</mujoco>"]
-    return "\n".join(lines) + "\n"
+    return description
+
+
+def _description(source: Robot | PeerDescription) -> PeerDescription:
+    """``source`` itself, or the checked description of a robot (:func:`describe`)."""
+    return source if isinstance(source, PeerDescription) else describe(source)
 
 
 def resolve_package_uri(uri: str, package_dirs: Sequence[str]) -> str:
@@ -160,30 +119,32 @@ def resolve_package_uri(uri: str, package_dirs: Sequence[str]) -> str:
     )
 
 
-def peer_urdf(robot: Any, keep_geometry: bool = True, mesh_formats: Sequence[str] = ()) -> str:
-    """URDF of a :class:`PinocchioArm` rewritten for another library.
+def peer_urdf(
+    source: Robot | PeerDescription, keep_geometry: bool = True, mesh_formats: Sequence[str] = ()
+) -> str:
+    """The description's URDF rewritten for another library.
 
     * ``package://`` mesh URIs become absolute paths (:func:`resolve_package_uri`);
-    * movable joints absent from ``robot.joint_names`` (locked by the reduced model, e.g.
-      Panda's fingers) become ``fixed`` — at 0, so a joint locked elsewhere shows up as a
-      pose mismatch in :func:`pose_mismatch`;
+    * movable joints absent from ``joint_names`` (locked by the robot, e.g. Panda's fingers)
+      become ``fixed`` — at 0, so a joint locked elsewhere shows up as a pose mismatch in
+      :func:`pose_mismatch`;
     * with ``keep_geometry=False`` every ``<visual>``/``<collision>`` is dropped (kinematics
       only); with ``mesh_formats`` given, meshes in other formats are dropped.
 
     Args:
-        robot: A robot with ``urdf_path``, ``package_dirs`` and ``joint_names``.
+        source: A robot (asked for its description) or a description.
         keep_geometry: Keep visual and collision elements.
         mesh_formats: Lower-case file suffixes to keep (all when empty).
 
     Raises:
-        RobotLoadError: The robot has no URDF, or a mesh URI cannot be resolved.
+        RobotLoadError: The URDF is not valid XML, or a mesh URI cannot be resolved.
     """
-    path = getattr(robot, "urdf_path", None)
-    if not path:
-        raise RobotLoadError(f"robot {robot.name!r} has no URDF to give a peer")
-    tree = ET.parse(path)
-    root = tree.getroot()
-    keep = set(robot.joint_names)
+    description = _description(source)
+    try:
+        root = ET.fromstring(description.urdf)
+    except ET.ParseError as error:
+        raise RobotLoadError(f"urdf: the peer description's URDF is not XML: {error}") from error
+    keep = set(description.joint_names)
     for joint in root.iter("joint"):
         if joint.get("type") != "fixed" and joint.get("name") not in keep:
             joint.set("type", "fixed")
@@ -193,7 +154,9 @@ def peer_urdf(robot: Any, keep_geometry: bool = True, mesh_formats: Sequence[str
                 mesh = element.find("geometry/mesh")
                 drop = not keep_geometry
                 if mesh is not None and not drop:
-                    filename = resolve_package_uri(mesh.get("filename", ""), robot.package_dirs)
+                    filename = resolve_package_uri(
+                        mesh.get("filename", ""), description.package_dirs
+                    )
                     mesh.set("filename", filename)
                     drop = bool(mesh_formats) and not filename.lower().endswith(tuple(mesh_formats))
                 if drop:
@@ -236,41 +199,150 @@ class JointMap:
         return np.asarray(v, dtype=float)[self.velocity_index]
 
 
-def pinocchio_model(robot: Robot) -> tuple[Any, int]:
-    """Pinocchio model of ``robot`` and the index of its end-effector frame.
+def pinocchio_model(source: Robot | PeerDescription) -> tuple[Any, int]:
+    """Pinocchio model of the described arm and the index of its end-effector frame.
 
-    A :class:`PinocchioArm` gives its own reduced model (the very model our backends use);
-    a :class:`PlanarArm` is built from :func:`planar_urdf`.
+    The description's ``pinocchio_model`` and ``frame_id`` when given (for a
+    :class:`~otmm_qp.robots.pinocchio_arm.PinocchioArm`, the very model our backends use);
+    otherwise a model parsed from :func:`peer_urdf` (kinematics only), the frame looked up
+    by name (a body frame wins over a joint frame of the same name).
 
     Raises:
-        RobotLoadError: The robot is neither.
+        RobotLoadError: Pinocchio cannot parse the URDF.
+        FrameNotFound: The description's ``frame`` is not a frame of the model.
     """
-    if isinstance(robot, PlanarArm):
-        model = pin.buildModelFromXML(planar_urdf(robot))
-        return model, int(model.getFrameId(PLANAR_FRAME, pin.FrameType.BODY))
-    model = getattr(robot, "model", None)
-    if isinstance(model, pin.Model):
-        return model, int(robot.frame_id)  # type: ignore[attr-defined]
-    raise RobotLoadError(f"robot {robot.name!r}: peers support PlanarArm and PinocchioArm only")
+    description = _description(source)
+    if description.pinocchio_model is not None and description.frame_id is not None:
+        return description.pinocchio_model, int(description.frame_id)
+    try:
+        model = pin.buildModelFromXML(peer_urdf(description, keep_geometry=False))
+    except (RuntimeError, ValueError) as error:
+        raise RobotLoadError(f"urdf: Pinocchio cannot parse the peer URDF: {error}") from error
+    matches = [i for i, f in enumerate(model.frames) if f.name == description.frame]
+    if not matches:
+        raise FrameNotFound(description.frame, {str(f.name) for f in model.frames})
+    bodies = [i for i in matches if model.frames[i].type == pin.FrameType.BODY]
+    return model, int((bodies or matches)[0])
 
 
-def mujoco_model(robot: Robot) -> tuple[Any, str]:
-    """MuJoCo model of ``robot`` and the name of its end-effector site.
+@dataclass(frozen=True)
+class PinocchioPeerModel:
+    r"""A Pinocchio model of the robot for a peer, and our coordinates in it.
 
-    Planar arms come from :func:`planar_mjcf`; URDF arms are loaded from
+    .. math::
+        q_{pin} = \begin{cases} q & \text{own model} \\
+        \theta & \text{Euclidean, same joint order} \\
+        \text{integrate}(q_{neutral},\ v),\ v[\text{velocity\_index}] = \theta
+        & \text{otherwise} \end{cases}
+        \qquad \dot\theta = v_{pin}[\text{velocity\_index}]
+
+    with ``θ = robot.joint_coordinates(q)`` (nv,). Build with :meth:`create`, once per bind.
+
+    Attributes:
+        model: The ``pin.Model``.
+        frame_id: End-effector frame index in ``model.frames``.
+        velocity_index: Index of each of our joints in the model's velocity vector, ``(nv,)``.
+        own: The description's own model: its configuration is the robot's ``q`` (nq,).
+        same_order: ``velocity_index`` is ``0 … nv−1`` (no reordering needed).
+        euclidean: ``model.nq == model.nv`` (no continuous joints).
+        neutral: ``pin.neutral(model)``, shape ``(model.nq,)``.
+    """
+
+    model: Any
+    frame_id: int
+    velocity_index: np.ndarray
+    own: bool
+    same_order: bool
+    euclidean: bool
+    neutral: FloatArray
+
+    @classmethod
+    def create(cls, description: PeerDescription, robot: Robot) -> PinocchioPeerModel:
+        """The model of :func:`pinocchio_model` with the index map of ``robot``'s joints.
+
+        Raises:
+            RobotLoadError: A joint of the robot is not a movable joint of the model, the
+                model has other movable joints, or a given ``pinocchio_model`` does not
+                have the robot's joints in order and the robot's ``nq``.
+        """
+        model, frame_id = pinocchio_model(description)
+        own = description.pinocchio_model is not None
+        names = [str(n) for n in list(model.names)[1:]]
+        if own and (names != list(robot.joint_names) or int(model.nq) != robot.nq):
+            raise RobotLoadError(
+                f"robot {robot.name!r}: PeerDescription.pinocchio_model must have the joints "
+                f"{list(robot.joint_names)} in order and nq={robot.nq}; it has {names}, "
+                f"nq={int(model.nq)}"
+            )
+        missing = [n for n in robot.joint_names if n not in names]
+        if missing or len(names) != robot.nv or int(model.nv) != robot.nv:
+            raise RobotLoadError(
+                f"robot {robot.name!r}: the peer URDF's movable joints {names} are not the "
+                f"robot's joints {list(robot.joint_names)} (one velocity coordinate each)"
+            )
+        index = np.array([model.joints[model.getJointId(n)].idx_v for n in robot.joint_names])
+        return cls(
+            model=model,
+            frame_id=frame_id,
+            velocity_index=index,
+            own=own,
+            same_order=bool(np.array_equal(index, np.arange(robot.nv))),
+            euclidean=int(model.nq) == int(model.nv),
+            neutral=np.asarray(pin.neutral(model)),
+        )
+
+    def configuration(self, robot: Robot, q: FloatArray) -> FloatArray:
+        """The model's configuration (model.nq,) at the robot's configuration ``q`` (nq,)."""
+        if self.own:
+            return q
+        theta = robot.joint_coordinates(q)
+        if self.same_order:
+            if self.euclidean:
+                return theta
+            return np.asarray(pin.integrate(self.model, self.neutral, theta))
+        v = np.zeros(self.model.nv)
+        v[self.velocity_index] = theta
+        if self.euclidean:
+            return v
+        return np.asarray(pin.integrate(self.model, self.neutral, v))
+
+    def velocity(self, v: FloatArray) -> FloatArray:
+        """Our joint velocity (nv,) [rad/s or m/s] from the model's velocity vector."""
+        if self.same_order:
+            return np.asarray(v, dtype=float)
+        return np.asarray(v, dtype=float)[self.velocity_index]
+
+
+def mujoco_model(
+    source: Robot | PeerDescription, pinocchio: tuple[Any, int] | None = None
+) -> tuple[Any, str]:
+    """MuJoCo model of the described arm and the name of its end-effector site.
+
+    The description's ``mjcf`` when given (its site ``frame``); otherwise its URDF through
     :func:`peer_urdf` (absolute mesh paths, ``strippath="false"`` so MuJoCo keeps them,
-    ``fusestatic="false"``) and get a site :data:`MUJOCO_SITE` on the body of the frame's
+    ``fusestatic="false"``) with a site :data:`MUJOCO_SITE` on the body of the frame's
     parent joint, placed at the frame's Pinocchio placement in that joint frame.
 
+    Args:
+        source: A robot (asked for its description) or a description.
+        pinocchio: ``(model, frame_id)`` of :func:`pinocchio_model`, when already built.
+
     Raises:
-        RobotLoadError: Unsupported robot or a URDF MuJoCo rejects.
+        RobotLoadError: MuJoCo rejects the MJCF/URDF, or the MJCF has no site ``frame``.
     """
     import mujoco
 
-    if isinstance(robot, PlanarArm):
-        return mujoco.MjModel.from_xml_string(planar_mjcf(robot)), PLANAR_FRAME
-    model, frame_id = pinocchio_model(robot)
-    text = peer_urdf(robot, mesh_formats=MUJOCO_MESH_FORMATS)
+    description = _description(source)
+    if description.mjcf is not None:
+        try:
+            compiled = mujoco.MjModel.from_xml_string(description.mjcf)
+        except ValueError as error:
+            raise RobotLoadError(f"mjcf: MuJoCo cannot load the peer MJCF: {error}") from error
+        if mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_SITE, description.frame) < 0:
+            raise RobotLoadError(f"mjcf: no site named {description.frame!r}")
+        return compiled, description.frame
+    model, frame_id = pinocchio if pinocchio is not None else pinocchio_model(description)
+    text = peer_urdf(description, mesh_formats=MUJOCO_MESH_FORMATS)
     root = ET.fromstring(text)
     extension = ET.SubElement(root, "mujoco")
     ET.SubElement(
@@ -279,7 +351,7 @@ def mujoco_model(robot: Robot) -> tuple[Any, str]:
     try:
         spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
     except ValueError as error:
-        raise RobotLoadError(f"urdf: MuJoCo cannot load {robot.name!r}: {error}") from error
+        raise RobotLoadError(f"urdf: MuJoCo cannot load {root.get('name')!r}: {error}") from error
     frame = model.frames[frame_id]
     joint_name = str(model.names[frame.parentJoint])
     body = next((j.parent for j in spec.joints if j.name == joint_name), None)
@@ -332,29 +404,49 @@ def pinocchio_frame_pose(model: Any, frame_id: int, q: FloatArray) -> FloatArray
     return np.asarray(data.oMf[frame_id].homogeneous)
 
 
-def pose_mismatch(robot: Robot, theta: FloatArray) -> tuple[float, float]:
-    r"""How far Pinocchio and MuJoCo disagree on the end-effector pose at ``θ``.
+def model_mismatch(
+    robot: Robot,
+    pinocchio: PinocchioPeerModel,
+    mujoco_pair: tuple[Any, str],
+    theta: FloatArray,
+) -> tuple[float, float]:
+    r"""How far a Pinocchio and a MuJoCo model disagree on the end-effector pose at ``θ``.
 
     .. math:: e_p = \|p_{pin} - p_{mj}\|,\qquad e_R = \|\log(R_{pin}^\top R_{mj})\|
 
     Args:
-        robot: Planar or Pinocchio arm.
-        theta: Joint coordinates [rad], shape ``(nv,)``.
+        robot: The robot both models describe.
+        pinocchio: Its Pinocchio model (:class:`PinocchioPeerModel`).
+        mujoco_pair: ``(MjModel, site)`` of :func:`mujoco_model`.
+        theta: Joint coordinates [rad or m], shape ``(nv,)``.
 
     Returns:
         ``(e_p [m], e_R [rad])``.
     """
     import mujoco
 
-    model, frame_id = pinocchio_model(robot)
-    q = pin.integrate(model, pin.neutral(model), np.asarray(theta, dtype=float))
-    if not isinstance(robot, PlanarArm):
-        q = robot.configuration(np.asarray(theta, dtype=float))
-    pose_pin = pinocchio_frame_pose(model, frame_id, q)
-    mj_model, site = mujoco_model(robot)
-    mj_data = mujoco.MjData(mj_model)
+    theta = np.asarray(theta, dtype=float)
+    q = pinocchio.configuration(robot, robot.configuration(theta))
+    pose_pin = pinocchio_frame_pose(pinocchio.model, pinocchio.frame_id, q)
+    mj_model, site = mujoco_pair
     qpos = mujoco_joint_map(robot, mj_model).to_peer(theta, mj_model.qpos0)
-    pose_mj = mujoco_site_pose(mj_model, mj_data, site, qpos)
+    pose_mj = mujoco_site_pose(mj_model, mujoco.MjData(mj_model), site, qpos)
     e_p = float(np.linalg.norm(pose_pin[:3, 3] - pose_mj[:3, 3]))
     e_r = float(np.linalg.norm(pin.log3(pose_pin[:3, :3].T @ pose_mj[:3, :3])))
     return e_p, e_r
+
+
+def pose_mismatch(robot: Robot, theta: FloatArray) -> tuple[float, float]:
+    """:func:`model_mismatch` of the Pinocchio and MuJoCo models built from the robot.
+
+    Args:
+        robot: Any robot implementing ``peer_description``.
+        theta: Joint coordinates [rad or m], shape ``(nv,)``.
+
+    Returns:
+        ``(e_p [m], e_R [rad])``.
+    """
+    description = describe(robot)
+    pinocchio = PinocchioPeerModel.create(description, robot)
+    pair = mujoco_model(description, (pinocchio.model, pinocchio.frame_id))
+    return model_mismatch(robot, pinocchio, pair, theta)

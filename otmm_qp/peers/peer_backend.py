@@ -11,6 +11,10 @@ peer would have reached after one period :math:`dt` if it realised :math:`\dot x
 [rad/s], the convention of :class:`~otmm_qp.robots.pinocchio_arm.PinocchioArm`; a position
 task has ``ω = 0`` and no orientation cost). The peer's joint step ``Δq`` toward that target
 gives the joint velocity ``q̇ = Δq/dt``.
+
+Which rows of ``(v, ω)`` the task commands comes from the robot's
+:class:`~otmm_qp.robots.peer_description.PeerDescription` (asked once, in :meth:`PeerBackend.bind`)
+and its ``task_kind``, never from the robot's class.
 """
 
 from __future__ import annotations
@@ -23,7 +27,9 @@ import pinocchio as pin
 
 from otmm_qp.backends.backend import Backend
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
-from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.peers.models import describe
+from otmm_qp.peers.velocity_task import task_rows
+from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -66,33 +72,41 @@ class PeerBackend(Backend):
 
     Subclasses import their library in ``__init__`` (via :func:`require`, so a missing peer
     becomes :class:`PeerUnavailable` before the run starts), build the peer's model in
-    :meth:`bind` and implement :meth:`solve`.
+    :meth:`bind` (after ``super().bind``, from :attr:`description`) and implement
+    :meth:`solve`.
+
+    Attributes:
+        description: The robot's checked peer description (set by :meth:`bind`).
+        task_rows: Rows of the frame twist ``(v, ω)`` the task commands, shape ``(n,)``.
     """
 
     #: Peer library name (``pink``, ``mink``, ``drake``).
     peer: str = "peer"
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Attach the robot and ask it, once, for its :class:`PeerDescription`.
+
+        Raises:
+            RobotLoadError: The robot cannot describe itself to a peer, or its description
+                does not match it (see :func:`~otmm_qp.peers.models.describe`).
+        """
+        super().bind(robot, dt)
+        self.description: PeerDescription = describe(robot)
+        self.task_rows: np.ndarray = task_rows(self.description.planar, robot.task_kind)
 
     @staticmethod
     def physical_velocity(state: KinematicState, xdot: FloatArray) -> FloatArray:
         r"""Un-weighted task velocity :math:`\dot x = W^{-1}\dot x_w`, shape ``(n,)``."""
         return np.asarray(xdot, dtype=float) / state.weight
 
-    @staticmethod
-    def spatial_velocity(robot: Robot, xdot: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """World-aligned ``(v [m/s], ω [rad/s])``, shapes ``(3,)``, of a task velocity.
+    def spatial_velocity(self, xdot: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """World-aligned ``(v [m/s], ω [rad/s])``, shapes ``(3,)``, of a task velocity ``(n,)``.
 
-        Planar arms: ``v = (ẋ, ẏ, 0)``; position tasks: ``ω = 0``; pose tasks: ``(v, ω)``.
+        Planar: ``v = (ẋ, ẏ, 0)``; position tasks: ``ω = 0``; pose tasks: ``(v, ω)``.
         """
-        linear = np.zeros(3)
-        angular = np.zeros(3)
-        if isinstance(robot, PlanarArm):
-            linear[:2] = xdot
-        elif robot.task_kind == "pose":
-            linear[:] = xdot[:3]
-            angular[:] = xdot[3:]
-        else:
-            linear[:] = xdot[:3]
-        return linear, angular
+        twist = np.zeros(6)
+        twist[self.task_rows] = xdot
+        return twist[:3], twist[3:]
 
     @staticmethod
     def advanced_pose(
@@ -128,7 +142,5 @@ class PeerBackend(Backend):
         self.limit_gain = check_limit_gain(limit_gain)
 
     def orientation_weight(self) -> float:
-        """1 for pose tasks, 0 when only the position is commanded."""
-        return (
-            1.0 if self.robot.task_kind == "pose" and not isinstance(self.robot, PlanarArm) else 0.0
-        )
+        """1 when the task commands the angular velocity (pose tasks), else 0."""
+        return 1.0 if bool(np.any(self.task_rows >= 3)) else 0.0

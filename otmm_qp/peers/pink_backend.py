@@ -8,10 +8,9 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
-from otmm_qp.peers.models import pinocchio_model
+from otmm_qp.peers.models import PinocchioPeerModel
 from otmm_qp.peers.peer_backend import PeerBackend, require
-from otmm_qp.peers.velocity_task import VelocityTaskData, task_rows
-from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -27,8 +26,9 @@ class PinkBackend(PeerBackend):
         \min_{\Delta q}\ \|W(J\Delta q + e)\|^2 + \mu\|\Delta q\|^2
         \quad\text{s.t. configuration (gain g) and velocity limits}
 
-    The model is the robot's own: a :class:`PinocchioArm`'s reduced ``pin.Model``, or the
-    URDF generated from a :class:`PlanarArm` (:func:`~otmm_qp.peers.models.planar_urdf`).
+    The model is the one the robot's peer description gives (a :class:`PinocchioArm`'s own
+    reduced ``pin.Model``) or one parsed from the description's URDF (e.g. the URDF generated
+    for a :class:`PlanarArm`); see :class:`~otmm_qp.peers.models.PinocchioPeerModel`.
 
     Args:
         solver: qpsolvers backend name, e.g. ``daqp``, ``proxqp``, ``osqp``, ``quadprog``.
@@ -68,25 +68,20 @@ class PinkBackend(PeerBackend):
 
         super().bind(robot, dt)
         self._solve_ik = pink.solve_ik
-        model, frame_id = pinocchio_model(robot)
-        model = limited_model(model, robot)
+        self._pinocchio = PinocchioPeerModel.create(self.description, robot)
+        model = limited_model(self._pinocchio.model, robot)
+        frame_id = self._pinocchio.frame_id
         self._model = model
         self._frame = str(model.frames[frame_id].name)
-        self._planar = isinstance(robot, PlanarArm)
         self._configuration = pink.Configuration(model, model.createData(), pin.neutral(model))
-        self._data = VelocityTaskData(task_rows(robot))
+        self._data = VelocityTaskData(self.task_rows)
         self._task = _pink_velocity_task(frame_id, self._data, self.lm_damping)
         self._limits: list[Any] = []
         if self.use_limits:
-            self._limits = [
+            self._limits = [  # both read the limits limited_model wrote into the model
                 ConfigurationLimit(model, config_limit_gain=self.limit_gain),
-                VelocityLimit(model, velocity_limit=np.asarray(robot.velocity_limits)),
+                VelocityLimit(model),
             ]
-
-    def _pin_configuration(self, q: FloatArray) -> FloatArray:
-        if self._planar:  # generated model: continuous joints are (cos, sin) pairs
-            return np.asarray(pin.integrate(self._model, pin.neutral(self._model), q))
-        return np.asarray(q, dtype=float)
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
@@ -95,7 +90,7 @@ class PinkBackend(PeerBackend):
         from pink.exceptions import PinkError
 
         configuration = self._configuration
-        configuration.update(self._pin_configuration(state.q))
+        configuration.update(self._pinocchio.configuration(self.robot, state.q))
         self._data.set_command(self.physical_velocity(state, xdot), state.weight, self.dt)
         try:
             velocity = self._solve_ik(
@@ -109,7 +104,7 @@ class PinkBackend(PeerBackend):
             )
         except PinkError:
             return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
-        return BackendOutput(np.asarray(velocity, dtype=float), STATUS_OK)
+        return BackendOutput(self._pinocchio.velocity(velocity), STATUS_OK)
 
 
 def limited_model(model: Any, robot: Robot) -> Any:

@@ -8,9 +8,9 @@ through its public ``Task`` API, the task the velocity-level controllers solve:
 .. math::
     e = -\dot x\,dt,\qquad J_{task} = S\,J_{LWA}(q),\qquad \text{cost} = W
 
-with ``S`` selecting the commanded rows of the ``LOCAL_WORLD_ALIGNED`` frame Jacobian (x, y for
-planar arms; the linear rows for position tasks; all six for poses), computed by the peer from
-its own model. The peer then minimises, in ``Δq = q̇·dt``,
+with ``S`` selecting the commanded rows of the ``LOCAL_WORLD_ALIGNED`` frame Jacobian (x, y when
+the robot's peer description is planar; the linear rows for position tasks; all six for poses),
+computed by the peer from its own model. The peer then minimises, in ``Δq = q̇·dt``,
 
 .. math:: \|W(J_{task}\Delta q + e)\|^2 + \mu\|\Delta q\|^2
           = dt^2\big(\|W(J\dot q - \dot x)\|^2 + \mu\|\dot q\|^2\big)
@@ -22,15 +22,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from otmm_qp.robots.planar_arm import PlanarArm
-from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.robots.robot import FloatArray, TaskKind
 
 
-def task_rows(robot: Robot) -> np.ndarray:
-    """Rows of the 6-D ``(v, ω)`` frame Jacobian the task commands, shape ``(n,)``."""
-    if isinstance(robot, PlanarArm) or robot.task_dim == 2:
+def task_rows(planar: bool, task_kind: TaskKind) -> np.ndarray:
+    """Rows of the 6-D ``(v, ω)`` frame Jacobian the task commands, shape ``(n,)``.
+
+    Args:
+        planar: The robot's :attr:`PeerDescription.planar
+            <otmm_qp.robots.peer_description.PeerDescription.planar>` (x, y in the world
+            xy-plane).
+        task_kind: The robot's ``task_kind`` (``"position"`` or ``"pose"``).
+
+    Returns:
+        ``[0, 1]`` (planar), ``[0, 1, 2]`` (position) or ``[0, …, 5]`` (pose).
+    """
+    if planar:
         return np.array([0, 1])
-    if robot.task_kind == "pose":
+    if task_kind == "pose":
         return np.arange(6)
     return np.arange(3)
 

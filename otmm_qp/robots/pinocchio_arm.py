@@ -8,6 +8,7 @@ axes. The pose error of :meth:`PinocchioArm.task_error` uses the matching log ma
 from __future__ import annotations
 
 import os
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -16,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.exceptions import DimensionError, FrameNotFound, ParameterError, RobotLoadError
+from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot, TaskKind
 
 
@@ -434,6 +436,35 @@ class PinocchioArm(Robot):
         if self._euclidean:
             return np.array(q, dtype=float)
         return np.asarray(pin.difference(self.model, self._neutral, q))
+
+    def peer_description(self) -> PeerDescription:
+        """The arm's URDF, frame and package directories, with its own reduced model.
+
+        The reduced ``pin.Model`` (locked joints at their lock values) and frame index are
+        handed over as is, so pink runs on the very model our backends use; mesh paths
+        relative to the URDF file are made absolute (the text no longer has a directory).
+
+        Raises:
+            RobotLoadError: The URDF file cannot be read.
+        """
+        path = str(self.urdf_path)
+        try:
+            root = ET.parse(path).getroot()
+        except (OSError, ET.ParseError) as error:
+            raise RobotLoadError(f"urdf: cannot read {path}: {error}") from error
+        directory = os.path.dirname(path)
+        for mesh in root.iter("mesh"):
+            filename = mesh.get("filename", "")
+            if filename and "://" not in filename and not os.path.isabs(filename):
+                mesh.set("filename", os.path.normpath(os.path.join(directory, filename)))
+        return PeerDescription(
+            urdf=ET.tostring(root, encoding="unicode"),
+            frame=self.frame_name,
+            joint_names=self.joint_names,
+            package_dirs=tuple(self.package_dirs),
+            pinocchio_model=self.model,
+            frame_id=self.frame_id,
+        )
 
     def can_reach(self, x: FloatArray) -> bool:
         """Whether the target position is within :attr:`reach` [m] of the first joint.

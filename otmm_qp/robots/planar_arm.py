@@ -1,4 +1,4 @@
-"""Planar serial arm with revolute joints and a 2-D position task."""
+"""Planar serial arm with revolute joints and a 2-D position task (and its URDF / MJCF)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
+from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
+
+#: Name of the end-effector frame (URDF link) / site (MJCF) of generated planar models.
+PLANAR_FRAME = "ee"
 
 
 class PlanarArm(Robot):
@@ -128,3 +132,116 @@ class PlanarArm(Robot):
         """Whether ``x`` [m] lies in the reach annulus ``r_min ≤ ‖x‖ ≤ r_max``."""
         radius = float(np.hypot(x[0], x[1]))
         return self.reach_min - 1e-9 <= radius <= self.reach_max + 1e-9
+
+    def peer_description(self) -> PeerDescription:
+        """Generated URDF (:func:`planar_urdf`) and MJCF (:func:`planar_mjcf`); planar task.
+
+        The end-effector frame/site is :data:`PLANAR_FRAME`; the limits written into the
+        files are the arm's, so each call reflects the current limits.
+        """
+        return PeerDescription(
+            urdf=planar_urdf(self),
+            frame=PLANAR_FRAME,
+            joint_names=self.joint_names,
+            planar=True,
+            mjcf=planar_mjcf(self),
+        )
+
+
+def _fmt(value: float) -> str:
+    """``value`` with full double precision (17 significant digits)."""
+    return f"{value:.17g}"
+
+
+def planar_urdf(arm: PlanarArm) -> str:
+    r"""URDF text of a planar arm, base fixed at the world origin.
+
+    Joint ``i`` sits at the tip of link ``i−1`` (``origin xyz = (l_{i-1}, 0, 0)``) and turns
+    about ``z``; finite limits give ``revolute`` joints, unbounded ones ``continuous``.
+    Links get a unit point mass (Drake rejects massless bodies in some checks).
+
+    Args:
+        arm: The planar arm; lengths [m], limits [rad], speed limits [rad/s].
+
+    Returns:
+        URDF XML; the end-effector link is ``ee`` (:data:`PLANAR_FRAME`).
+    """
+    lower, upper = arm.position_limits
+    speeds = arm.velocity_limits
+    inertial = (
+        '<inertial><mass value="1"/><origin xyz="0 0 0"/>'
+        '<inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>'
+    )
+    lines = [f'<robot name="{arm.name}">', f'  <link name="base">{inertial}</link>']
+    parent, offset = "base", 0.0
+    for i, name in enumerate(arm.joint_names):
+        bounded = bool(np.isfinite(lower[i]) and np.isfinite(upper[i]))
+        speed = _fmt(float(speeds[i])) if np.isfinite(speeds[i]) else "0"
+        limit = (
+            f'<limit lower="{_fmt(lower[i])}" upper="{_fmt(upper[i])}" effort="0" '
+            f'velocity="{speed}"/>'
+            if bounded
+            else f'<limit effort="0" velocity="{speed}"/>'
+        )
+        child = f"link{i + 1}"
+        lines += [
+            f'  <link name="{child}">{inertial}</link>',
+            f'  <joint name="{name}" type="{"revolute" if bounded else "continuous"}">',
+            f'    <parent link="{parent}"/><child link="{child}"/>',
+            f'    <origin xyz="{_fmt(offset)} 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/>',
+            f"    {limit}",
+            "  </joint>",
+        ]
+        parent, offset = child, float(arm.link_lengths[i])
+    lines += [
+        f'  <link name="{PLANAR_FRAME}">{inertial}</link>',
+        f'  <joint name="{PLANAR_FRAME}_joint" type="fixed">',
+        f'    <parent link="{parent}"/><child link="{PLANAR_FRAME}"/>',
+        f'    <origin xyz="{_fmt(offset)} 0 0" rpy="0 0 0"/>',
+        "  </joint>",
+        "</robot>",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def planar_mjcf(arm: PlanarArm) -> str:
+    r"""MJCF text of a planar arm, in radians.
+
+    MJCF reads angles in *degrees* unless ``<compiler angle="radian"/>``; the joint ranges
+    here are radians, so the compiler flag is set. Hinges turn about ``z``; unbounded joints
+    are ``limited="false"``. The end-effector site is ``ee`` (:data:`PLANAR_FRAME`).
+
+    Args:
+        arm: The planar arm; lengths [m], limits [rad].
+
+    Returns:
+        MJCF XML.
+    """
+    lower, upper = arm.position_limits
+    lines = [
+        f'<mujoco model="{arm.name}">',
+        '  <compiler angle="radian" autolimits="true"/>',
+        '  <option integrator="Euler" gravity="0 0 0"/>',
+        "  <worldbody>",
+    ]
+    offset, depth = 0.0, 2
+    for i, name in enumerate(arm.joint_names):
+        pad = "  " * depth
+        bounded = bool(np.isfinite(lower[i]) and np.isfinite(upper[i]))
+        limit = (
+            f'limited="true" range="{_fmt(lower[i])} {_fmt(upper[i])}"'
+            if bounded
+            else 'limited="false"'
+        )
+        length = float(arm.link_lengths[i])
+        lines += [
+            f'{pad}<body name="link{i + 1}" pos="{_fmt(offset)} 0 0">',
+            f'{pad}  <joint name="{name}" type="hinge" axis="0 0 1" {limit}/>',
+            f'{pad}  <geom type="capsule" fromto="0 0 0 {_fmt(length)} 0 0" size="0.02" mass="1"/>',
+        ]
+        offset, depth = length, depth + 1
+    lines.append(f'{"  " * depth}<site name="{PLANAR_FRAME}" pos="{_fmt(offset)} 0 0"/>')
+    for level in range(depth - 1, 1, -1):
+        lines.append(f"{'  ' * level}</body>")
+    lines += ["  </worldbody>", "</mujoco>"]
+    return "\n".join(lines) + "\n"

@@ -8,7 +8,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from otmm_qp.exceptions import DimensionError, NotWithinJointLimits
+from otmm_qp.exceptions import DimensionError, NotWithinJointLimits, RobotLoadError
+from otmm_qp.robots.peer_description import PeerDescription
 
 FloatArray = NDArray[np.float64]
 TaskKind = Literal["position", "pose"]
@@ -28,7 +29,8 @@ class Robot(abc.ABC):
           ``(n,)`` or a homogeneous pose ``(4, 4)``); :meth:`task_error` maps two task values
           to a vector of shape ``(n,)`` in the frame of the Jacobian.
 
-    Subclasses implement :meth:`kinematics` and the limit attributes.
+    Subclasses implement :meth:`kinematics` and the limit attributes; to run with the peer
+    backends (pink, mink, Drake) they also implement :meth:`peer_description`.
     """
 
     #: Human-readable robot name.
@@ -143,3 +145,18 @@ class Robot(abc.ABC):
             if not (lo - 1e-12 <= value <= hi + 1e-12):
                 raise NotWithinJointLimits(name, float(value), float(lo), float(hi))
         return self.configuration(q0)
+
+    def peer_description(self) -> PeerDescription:
+        """The URDF, end-effector frame and joint names a peer IK library models this arm from.
+
+        Called once when a peer backend is bound to the robot (not per step). The default
+        refuses: a robot runs with the peers only if it describes itself.
+
+        Raises:
+            RobotLoadError: Always, in the default (one line, naming the robot and its class).
+        """
+        raise RobotLoadError(
+            f"robot {self.name!r} ({type(self).__qualname__}) cannot be modelled by a peer "
+            "(pink, mink, drake): implement peer_description() returning an "
+            "otmm_qp.robots.PeerDescription (URDF text, end-effector frame, joint names)"
+        )

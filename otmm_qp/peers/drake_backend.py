@@ -24,6 +24,39 @@ from otmm_qp.state import KinematicState
 DRAKE_FRAME = "otmm_ee"
 
 
+def _welded_plant(robot: Robot) -> Any:
+    """A finalized ``MultibodyPlant`` of the robot's URDF, base welded, end-effector frame added."""
+    # Drake's bundled stubs mistype numpy arguments; use the modules untyped.
+    math: Any = importlib.import_module("pydrake.math")
+    parsing: Any = importlib.import_module("pydrake.multibody.parsing")
+    plants: Any = importlib.import_module("pydrake.multibody.plant")
+    tree: Any = importlib.import_module("pydrake.multibody.tree")
+
+    pin_model, frame_id = pinocchio_model(robot)
+    urdf = planar_urdf(robot) if isinstance(robot, PlanarArm) else peer_urdf(robot, False)
+    plant = plants.MultibodyPlant(time_step=0.0)
+    parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
+    base = root_link(urdf)
+    if base != "world":  # Drake merges a URDF link named "world" into its world body
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))
+    frame = pin_model.frames[frame_id]
+    parent = str(pin_model.names[frame.parentJoint])
+    body_frame = plant.GetJointByName(parent).child_body().body_frame()
+    placement = math.RigidTransform(np.asarray(frame.placement.homogeneous))
+    plant.AddFrame(tree.FixedOffsetFrame(DRAKE_FRAME, body_frame, placement))
+    plant.Finalize()
+    return plant
+
+
+def _velocity_flags(robot: Robot) -> list[bool]:
+    """Drake's velocity flags over (ωx, ωy, ωz, vx, vy, vz): the rows the task commands."""
+    if isinstance(robot, PlanarArm):
+        return [False, False, False, True, True, False]
+    if robot.task_kind == "pose":
+        return [True] * 6
+    return [False, False, False, True, True, True]
+
+
 class DrakeBackend(PeerBackend):
     r"""Drake's direction-preserving differential IK (``DoDifferentialInverseKinematics``).
 
@@ -64,27 +97,11 @@ class DrakeBackend(PeerBackend):
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""
-        # Drake's bundled stubs mistype numpy arguments; use the modules untyped.
-        math: Any = importlib.import_module("pydrake.math")
+        # Drake's bundled stubs mistype numpy arguments; use the module untyped.
         ik: Any = importlib.import_module("pydrake.multibody.inverse_kinematics")
-        parsing: Any = importlib.import_module("pydrake.multibody.parsing")
-        plants: Any = importlib.import_module("pydrake.multibody.plant")
-        tree: Any = importlib.import_module("pydrake.multibody.tree")
 
         super().bind(robot, dt)
-        pin_model, frame_id = pinocchio_model(robot)
-        urdf = planar_urdf(robot) if isinstance(robot, PlanarArm) else peer_urdf(robot, False)
-        plant = plants.MultibodyPlant(time_step=0.0)
-        parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
-        base = root_link(urdf)
-        if base != "world":  # Drake merges a URDF link named "world" into its world body
-            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))
-        frame = pin_model.frames[frame_id]
-        parent = str(pin_model.names[frame.parentJoint])
-        body_frame = plant.GetJointByName(parent).child_body().body_frame()
-        placement = math.RigidTransform(np.asarray(frame.placement.homogeneous))
-        plant.AddFrame(tree.FixedOffsetFrame(DRAKE_FRAME, body_frame, placement))
-        plant.Finalize()
+        plant = _welded_plant(robot)
         self._plant = plant
         self._context = plant.CreateDefaultContext()
         self._frame = plant.GetFrameByName(DRAKE_FRAME)
@@ -109,14 +126,7 @@ class DrakeBackend(PeerBackend):
         v_max[self._map.velocity_index] = robot.velocity_limits
         parameters.set_joint_velocity_limits((-v_max, v_max))
         parameters.set_maximum_scaling_to_report_stuck(self.stuck_scaling)
-        # Flags over (ωx, ωy, ωz, vx, vy, vz): the rows the task commands.
-        if isinstance(robot, PlanarArm):
-            flags = [False, False, False, True, True, False]
-        elif robot.task_kind == "pose":
-            flags = [True] * 6
-        else:
-            flags = [False, False, False, True, True, True]
-        parameters.set_end_effector_velocity_flag(flags)
+        parameters.set_end_effector_velocity_flag(_velocity_flags(robot))
         self._parameters = parameters
         self._ik = ik
         self._status = ik.DifferentialInverseKinematicsStatus

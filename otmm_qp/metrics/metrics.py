@@ -84,6 +84,30 @@ def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
 
 
+def _accel_sign_changes(jumps: np.ndarray, dt: float) -> int:
+    """Sign changes of each joint's acceleration ``jumps / dt``, summed (|a| < 1e-6 ignored)."""
+    accel = jumps / dt
+    signs = np.sign(np.where(np.abs(accel) < 1e-6, 0.0, accel))
+    changes = 0
+    for joint in signs.T:
+        nonzero = joint[joint != 0.0]
+        changes += int(np.count_nonzero(nonzero[1:] != nonzero[:-1]))
+    return changes
+
+
+def _limit_metrics(run: RunResult) -> Metrics:
+    """Steps outside the position and velocity limits, and the largest excess of each."""
+    out: Metrics = {}
+    lower, upper = run.position_limits
+    excess = np.maximum(np.maximum(lower - run.q, run.q - upper), 0.0)  # (N, nv) [rad]
+    out["position_violations"] = int(np.count_nonzero(np.any(excess > 1e-9, axis=1)))
+    out["max_position_excess"] = _safe_max(excess)
+    speed_excess = np.maximum(np.abs(run.qdot) - run.velocity_limits, 0.0)
+    out["velocity_violations"] = int(np.count_nonzero(np.any(speed_excess > 1e-9, axis=1)))
+    out["max_velocity_excess"] = _safe_max(speed_excess)
+    return out
+
+
 def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> Metrics:
     """All metrics of ``run`` (see the module docstring for definitions)."""
     settings = settings or MetricSettings()
@@ -116,25 +140,13 @@ def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> M
     jumps = np.diff(run.qdot, axis=0)  # (N−1, nv): q̇_k − q̇_{k−1}, k ≥ 1
     out["chattering"] = float(np.abs(jumps).sum())
     out["max_jump"] = _safe_max(np.max(np.abs(jumps), axis=1)) if jumps.size else 0.0
-    accel = jumps / run.dt
-    signs = np.sign(np.where(np.abs(accel) < 1e-6, 0.0, accel))
-    changes = 0
-    for joint in signs.T:
-        nonzero = joint[joint != 0.0]
-        changes += int(np.count_nonzero(nonzero[1:] != nonzero[:-1]))
-    out["accel_sign_changes"] = changes
+    out["accel_sign_changes"] = _accel_sign_changes(jumps, run.dt)
     out["steps_below_sigma_s"] = int(np.count_nonzero(run.sigma_min < settings.sigma_s))
     out["max_weak_speed"] = _safe_max(run.weak_speed)
     nonfinite = bool(np.count_nonzero(run.status == Status.NONFINITE))
     out["blow_up"] = nonfinite or bool(np.any(speed > settings.blow_up_speed))
 
-    lower, upper = run.position_limits
-    excess = np.maximum(np.maximum(lower - run.q, run.q - upper), 0.0)  # (N, nv) [rad]
-    out["position_violations"] = int(np.count_nonzero(np.any(excess > 1e-9, axis=1)))
-    out["max_position_excess"] = _safe_max(excess)
-    speed_excess = np.maximum(np.abs(run.qdot) - run.velocity_limits, 0.0)
-    out["velocity_violations"] = int(np.count_nonzero(np.any(speed_excess > 1e-9, axis=1)))
-    out["max_velocity_excess"] = _safe_max(speed_excess)
+    out.update(_limit_metrics(run))
     for status in Status:  # every status, so relaxed and saturated steps show in summaries
         out[f"status_{status.value}"] = int(np.count_nonzero(run.status == status.value))
     micro = run.step_time * 1e6

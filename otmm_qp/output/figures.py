@@ -25,6 +25,7 @@ import os
 import signal
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -492,7 +493,50 @@ def plot_comparison(
         sigma_s: Singular-value threshold σ_S drawn on the σ_min row, or None for no line.
     """
     runs = list(results)
-    n = max(len(runs), 1)
+    figure, axes = _comparison_grid(len(runs), title)
+    if not runs:
+        axes[0, 0].text(0.5, 0.5, "no runs", ha="center", va="center")
+        _save(figure, path)
+        return
+
+    scales = _comparison_scales(runs, sigma_s)
+    statuses_seen: dict[str, None] = {}
+    for col, result in enumerate(runs):
+        for name in _plot_comparison_column(list(axes[:, col]), col, result, scales, sigma_s):
+            statuses_seen[name] = None
+    axes[0, 0].set_xlim(0.0, scales.t_end)
+    axes[3, 0].set_ylabel("p", color=_P_COLOUR)
+    _comparison_legend(figure, runs[0].joint_names, list(statuses_seen))
+    _comparison_notes(figure, runs, scales, sigma_s)
+    _save(figure, path)
+
+
+@dataclass(frozen=True)
+class _ComparisonScales:
+    """Axis scales shared by the columns of a comparison figure.
+
+    Attributes:
+        peaks: Peak ``|q̇|`` of each run [rad/s] (0 for an empty run).
+        band: Linear band of the symlog speed axis [rad/s], or None for a linear axis.
+        error_log: Tracking error on a log axis.
+        error_limits: Y-limits of the tracking error row, or None.
+        sigma_log: σ_min on a log axis.
+        sigma_limits: Y-limits of the σ_min row, or None.
+        t_end: End of the shared time axis [s].
+    """
+
+    peaks: list[float]
+    band: float | None
+    error_log: bool
+    error_limits: tuple[float, float] | None
+    sigma_log: bool
+    sigma_limits: tuple[float, float] | None
+    t_end: float
+
+
+def _comparison_grid(count: int, title: str) -> tuple[Figure, np.ndarray]:
+    """A titled figure with 4 rows × one column per run (at least one), rows sharing y."""
+    n = max(count, 1)
     width = max(2.6 * n + 1.1, 6.5)
     figure = _new_figure(width, 8.0)
     axes = np.asarray(
@@ -514,13 +558,12 @@ def plot_comparison(
         hspace=0.14,
     )
     figure.suptitle(title, fontsize=12, y=0.985)
-    if not runs:
-        axes[0, 0].text(0.5, 0.5, "no runs", ha="center", va="center")
-        _save(figure, path)
-        return
+    return figure, axes
 
+
+def _comparison_scales(runs: Sequence[RunResult], sigma_s: float | None) -> _ComparisonScales:
+    """Speed, error and σ_min scales and the time range common to all ``runs`` (non-empty)."""
     peaks = [float(np.nanmax(np.abs(r.qdot))) if r.steps else 0.0 for r in runs]
-    band = _symlog_band(peaks)
     errors = [r.position_error for r in runs if r.steps]
     error_log = _wants_log(errors)
     error_limits = _log_limits(errors) if error_log else None
@@ -529,59 +572,85 @@ def plot_comparison(
         error_limits = (0.0, 1.05 * top if top > 0 else 1.0)
     sigmas = [r.sigma_min for r in runs if r.steps] + ([np.array([sigma_s])] if sigma_s else [])
     sigma_log = _wants_log(sigmas)
-    sigma_limits = _log_limits(sigmas) if sigma_log else None
-    t_end = max(max(_time_end(r) for r in runs), runs[0].dt)
-    statuses_seen: dict[str, None] = {}
+    return _ComparisonScales(
+        peaks=peaks,
+        band=_symlog_band(peaks),
+        error_log=error_log,
+        error_limits=error_limits,
+        sigma_log=sigma_log,
+        sigma_limits=_log_limits(sigmas) if sigma_log else None,
+        t_end=max(max(_time_end(r) for r in runs), runs[0].dt),
+    )
 
-    for col, result in enumerate(runs):
-        ax_qd, ax_err, ax_sigma, ax_p = axes[:, col]
-        _plot_speeds(ax_qd, result, band, legend=False)
-        _plot_error(ax_err, result, error_log, error_limits)
-        if error_limits is not None:
-            ax_err.set_ylim(*error_limits)
-        _plot_sigma(ax_sigma, result, sigma_s, sigma_log, sigma_limits)
-        if _filter_acted(result):
-            _plot_p(ax_p, result, label=col == 0)
-        else:
-            ax_p.set_ylim(-0.04, 1.06)
-            ax_p.text(
-                0.5,
-                0.5,
-                _no_filter_note(result),
-                transform=ax_p.transAxes,
-                ha="center",
-                va="center",
-                fontsize=8,
-                color="0.45",
-            )
+
+def _plot_comparison_column(
+    column: Sequence[Axes],
+    col: int,
+    result: RunResult,
+    scales: _ComparisonScales,
+    sigma_s: float | None,
+) -> list[str]:
+    """Draw one run's column (speeds, error, σ_min, p); return the statuses it marked."""
+    ax_qd, ax_err, ax_sigma, ax_p = column
+    _plot_speeds(ax_qd, result, scales.band, legend=False)
+    _plot_error(ax_err, result, scales.error_log, scales.error_limits)
+    if scales.error_limits is not None:
+        ax_err.set_ylim(*scales.error_limits)
+    _plot_sigma(ax_sigma, result, sigma_s, scales.sigma_log, scales.sigma_limits)
+    _plot_p_cell(ax_p, result, label=col == 0)
+    statuses: list[str] = []
+    for ax in (ax_qd, ax_err, ax_sigma, ax_p):
+        statuses += _mark_statuses(ax, result)
+        _mark_stop(ax, result)
+        ax.grid(True, linewidth=0.3, alpha=0.5)
+    _column_title(ax_qd, result, scales.peaks[col])
+    ax_p.set_xlabel("t [s]")
+    if col > 0:
         for ax in (ax_qd, ax_err, ax_sigma, ax_p):
-            for name in _mark_statuses(ax, result):
-                statuses_seen[name] = None
-            _mark_stop(ax, result)
-            ax.grid(True, linewidth=0.3, alpha=0.5)
-        top_error = float(np.nanmax(result.position_error)) if result.steps else float("nan")
-        head = f"{result.controller}\npeak |q̇| {peaks[col]:.3g} rad/s · peak ‖e‖ {top_error:.2g} m"
-        if result.error_message:
-            head += f"\nstopped at t = {_time_end(result):.3g} s"
-        _title(
-            ax_qd,
-            head,
-            fontsize=8.5,
-            loc="center",
-            color=_STOP_COLOUR if result.error_message else "black",
-        )
-        ax_p.set_xlabel("t [s]")
-        if col > 0:
-            for ax in (ax_qd, ax_err, ax_sigma, ax_p):
-                ax.set_ylabel("")
-    axes[0, 0].set_xlim(0.0, t_end)
-    axes[3, 0].set_ylabel("p", color=_P_COLOUR)
+            ax.set_ylabel("")
+    return statuses
 
+
+def _plot_p_cell(ax: Axes, result: RunResult, label: bool) -> None:
+    """The filter level p(t) of a comparison column, or why there is none."""
+    if _filter_acted(result):
+        _plot_p(ax, result, label=label)
+        return
+    ax.set_ylim(-0.04, 1.06)
+    ax.text(
+        0.5,
+        0.5,
+        _no_filter_note(result),
+        transform=ax.transAxes,
+        ha="center",
+        va="center",
+        fontsize=8,
+        color="0.45",
+    )
+
+
+def _column_title(ax: Axes, result: RunResult, peak: float) -> None:
+    """Controller name, peak ``|q̇|`` and peak ``‖e‖`` (and where it stopped) over a column."""
+    top_error = float(np.nanmax(result.position_error)) if result.steps else float("nan")
+    head = f"{result.controller}\npeak |q̇| {peak:.3g} rad/s · peak ‖e‖ {top_error:.2g} m"
+    if result.error_message:
+        head += f"\nstopped at t = {_time_end(result):.3g} s"
+    _title(
+        ax,
+        head,
+        fontsize=8.5,
+        loc="center",
+        color=_STOP_COLOUR if result.error_message else "black",
+    )
+
+
+def _comparison_legend(figure: Figure, joint_names: Sequence[str], statuses: list[str]) -> None:
+    """Figure legend: one line per joint, one marker per backend status seen."""
     joints = [
         Line2D([], [], color=f"C{k % 10}", linewidth=1.2, label=name)
-        for k, name in enumerate(runs[0].joint_names)
+        for k, name in enumerate(joint_names)
     ]
-    for name in statuses_seen:
+    for name in statuses:
         marker, colour = STATUS_STYLE.get(name, _OTHER_STATUS)
         joints.append(
             Line2D([], [], linestyle="none", marker=marker, color=colour, label=f"status {name}")
@@ -594,10 +663,17 @@ def plot_comparison(
         fontsize=8,
         frameon=False,
     )
+
+
+def _comparison_notes(
+    figure: Figure, runs: Sequence[RunResult], scales: _ComparisonScales, sigma_s: float | None
+) -> None:
+    """The line under the legend: which axes are logarithmic, what the dashed lines mean."""
     notes = []
-    if band is not None:
-        notes.append(f"q̇ on symlog axis: controller peaks differ by {max(peaks) / min(peaks):.0f}×")
-    if error_log:
+    if scales.band is not None:
+        ratio = max(scales.peaks) / min(scales.peaks)
+        notes.append(f"q̇ on symlog axis: controller peaks differ by {ratio:.0f}×")
+    if scales.error_log:
         notes.append("‖e‖ on log axis")
     if sigma_s is not None:
         notes.append(f"dashed: σ_S = {sigma_s:g}")
@@ -606,7 +682,6 @@ def plot_comparison(
     figure.text(
         0.5, 0.948, "   ·   ".join(notes), ha="center", va="bottom", fontsize=8, color="0.3"
     )
-    _save(figure, path)
 
 
 #: One drawing job: ``("run", (result, path, sigma_s))`` or

@@ -16,6 +16,7 @@ from otmm_qp.backends.backend import (
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, root_link
 from otmm_qp.peers.peer_backend import PeerBackend, check_limit_gain, require
+from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -64,27 +65,11 @@ class DrakeBackend(PeerBackend):
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""
-        # Drake's bundled stubs mistype numpy arguments; use the modules untyped.
-        math: Any = importlib.import_module("pydrake.math")
+        # Drake's bundled stubs mistype numpy arguments; use the module untyped.
         ik: Any = importlib.import_module("pydrake.multibody.inverse_kinematics")
-        parsing: Any = importlib.import_module("pydrake.multibody.parsing")
-        plants: Any = importlib.import_module("pydrake.multibody.plant")
-        tree: Any = importlib.import_module("pydrake.multibody.tree")
 
         super().bind(robot, dt)
-        pin_model, frame_id = pinocchio_model(self.description)
-        urdf = peer_urdf(self.description, keep_geometry=False)
-        plant = plants.MultibodyPlant(time_step=0.0)
-        parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
-        base = root_link(urdf)
-        if base != "world":  # Drake merges a URDF link named "world" into its world body
-            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))
-        frame = pin_model.frames[frame_id]
-        parent = str(pin_model.names[frame.parentJoint])
-        body_frame = plant.GetJointByName(parent).child_body().body_frame()
-        placement = math.RigidTransform(np.asarray(frame.placement.homogeneous))
-        plant.AddFrame(tree.FixedOffsetFrame(DRAKE_FRAME, body_frame, placement))
-        plant.Finalize()
+        plant = _welded_plant(self.description)
         self._plant = plant
         self._context = plant.CreateDefaultContext()
         self._frame = plant.GetFrameByName(DRAKE_FRAME)
@@ -139,3 +124,28 @@ class DrakeBackend(PeerBackend):
         qdot = self._map.from_peer_velocity(np.asarray(result.joint_velocities).ravel())
         status = STATUS_STUCK if result.status == self._status.kStuck else STATUS_OK
         return BackendOutput(qdot, status)
+
+
+def _welded_plant(description: PeerDescription) -> Any:
+    """A finalised ``MultibodyPlant`` of the arm, base welded, with :data:`DRAKE_FRAME` added.
+
+    The end-effector frame sits at its Pinocchio placement on the parent joint's child body.
+    """
+    math: Any = importlib.import_module("pydrake.math")
+    parsing: Any = importlib.import_module("pydrake.multibody.parsing")
+    plants: Any = importlib.import_module("pydrake.multibody.plant")
+    tree: Any = importlib.import_module("pydrake.multibody.tree")
+    pin_model, frame_id = pinocchio_model(description)
+    urdf = peer_urdf(description, keep_geometry=False)
+    plant = plants.MultibodyPlant(time_step=0.0)
+    parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
+    base = root_link(urdf)
+    if base != "world":  # Drake merges a URDF link named "world" into its world body
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))
+    frame = pin_model.frames[frame_id]
+    parent = str(pin_model.names[frame.parentJoint])
+    body_frame = plant.GetJointByName(parent).child_body().body_frame()
+    placement = math.RigidTransform(np.asarray(frame.placement.homogeneous))
+    plant.AddFrame(tree.FixedOffsetFrame(DRAKE_FRAME, body_frame, placement))
+    plant.Finalize()
+    return plant

@@ -22,6 +22,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -110,33 +111,18 @@ def write_arm_page(
     steps = max(r.steps for r in runs)
     per_frame = max(1, len(runs) * len(scene.geometry_paths) * 12 * 4)
     plan = plan_frames(steps, max(2, max_frame_bytes // per_frame))
-    transforms = []
-    controllers = []
-    for i, run in enumerate(runs):
-        rows = np.minimum(plan.indices, run.steps - 1)
-        transforms.append(geometry_transforms(visualizer, robot, run.q[rows]))
-        controllers.append(
-            {
-                "name": run.controller,
-                "color": f"#{PATH_COLORS[i % len(PATH_COLORS)]:06x}",
-                "sigma": _finite_list(run.sigma_min[rows]),
-                "actual": [_finite_list(run.position[k], 5) for k in rows],
-                "desired": [_finite_list(run.position_desired[k], 5) for k in rows],
-                "steps": run.steps,
-                "status": [run.status[k] for k in rows],
-            }
-        )
+    transforms = [
+        geometry_transforms(visualizer, robot, run.q[np.minimum(plan.indices, run.steps - 1)])
+        for run in runs
+    ]
     reference = runs[0]
     times = [float(f"{reference.t[min(k, reference.steps - 1)]:.6g}") for k in plan.indices]
-    points = np.vstack([desired] + [r.position for r in runs])
-    points = np.vstack([points[np.all(np.isfinite(points), axis=1)], np.zeros((1, 3))])
-    centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
-    extent = float(np.max(points.max(axis=0) - points.min(axis=0)))
+    centre, extent = _view(desired, runs)
     meta = {
         "title": title,
         "times": times,
         "steps": plan.indices.tolist(),
-        "controllers": controllers,
+        "controllers": [_controller_meta(i, run, plan) for i, run in enumerate(runs)],
         "geometries": scene.geometry_paths,
         "sigmaS": sigma_s,
         "target": [float(v) for v in centre],
@@ -145,13 +131,43 @@ def write_arm_page(
         "note": plan.describe(),
     }
     frames_blob = _pack([np.ascontiguousarray(np.stack(transforms)).tobytes()])
+    page = _fill_template(title, meta, scene.commands, frames_blob)
+    atomic_write_bytes(path, page.encode("utf-8"))
+    return PageResult(path, plan, list(scene.warnings))
+
+
+def _controller_meta(index: int, run: StoredRun, plan: FramePlan) -> dict[str, Any]:
+    """One controller's entry in the page data: name, colour and its values at the frames."""
+    rows = np.minimum(plan.indices, run.steps - 1)
+    return {
+        "name": run.controller,
+        "color": f"#{PATH_COLORS[index % len(PATH_COLORS)]:06x}",
+        "sigma": _finite_list(run.sigma_min[rows]),
+        "actual": [_finite_list(run.position[k], 5) for k in rows],
+        "desired": [_finite_list(run.position_desired[k], 5) for k in rows],
+        "steps": run.steps,
+        "status": [run.status[k] for k in rows],
+    }
+
+
+def _view(desired: np.ndarray, runs: Sequence[StoredRun]) -> tuple[np.ndarray, float]:
+    """Centre [m] and largest extent [m] of the finite paths and the base (the origin)."""
+    points = np.vstack([desired] + [r.position for r in runs])
+    points = np.vstack([points[np.all(np.isfinite(points), axis=1)], np.zeros((1, 3))])
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    extent = float(np.max(points.max(axis=0) - points.min(axis=0)))
+    return centre, extent
+
+
+def _fill_template(
+    title: str, meta: dict[str, Any], scene_commands: Sequence[bytes], frames_blob: str
+) -> str:
+    """The page: ``arm_page.html`` with the title, viewer bundle, data, scene and frames inlined."""
     template = (Path(__file__).parent / "arm_page.html").read_text(encoding="utf-8")
-    page = (
+    return (
         template.replace("__TITLE__", html.escape(title))
         .replace("__BUNDLE__", _viewer_bundle())
         .replace("__META__", json.dumps(meta, separators=(",", ":")).replace("</", "<\\/"))
-        .replace("__SCENE__", _pack(scene.commands))
+        .replace("__SCENE__", _pack(scene_commands))
         .replace("__FRAMES__", frames_blob)
     )
-    atomic_write_bytes(path, page.encode("utf-8"))
-    return PageResult(path, plan, list(scene.warnings))

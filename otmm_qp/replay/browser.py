@@ -148,53 +148,66 @@ def chromium_page(
     if binary is None:
         raise BrowserError(f"no Chromium found (looked for {', '.join(BROWSER_NAMES)})")
     with tempfile.TemporaryDirectory(prefix="otmm-chromium-") as profile:
-        process = subprocess.Popen(
-            [
-                binary,
-                "--headless",
-                "--no-sandbox",
-                "--no-first-run",
-                "--disable-gpu-sandbox",
-                "--enable-unsafe-swiftshader",
-                "--allow-file-access-from-files",
-                f"--user-data-dir={profile}",
-                "--remote-debugging-port=0",
-                f"--window-size={width},{height}",
-                "about:blank",
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        process = _launch(binary, profile, width, height)
         try:
             endpoint = _devtools_endpoint(process)
             # keep draining the browser's stderr so a chatty browser never blocks on a full pipe
             threading.Thread(target=_drain, args=(process.stderr,), daemon=True).start()
             with connect(endpoint, max_size=None, open_timeout=30) as socket:
-                target = _call(socket, 1, "Target.createTarget", url="about:blank")["targetId"]
-                session = _call(socket, 2, "Target.attachToTarget", targetId=target, flatten=True)[
-                    "sessionId"
-                ]
-                page = Page(socket, session)
-                for domain in ("Page", "Runtime", "Log"):
-                    page.send(f"{domain}.enable")
-                page.send(
-                    "Emulation.setDeviceMetricsOverride",
-                    width=width,
-                    height=height,
-                    deviceScaleFactor=1,
-                    mobile=False,
-                )
-                yield page
+                yield _open_tab(socket, width, height)
         finally:
-            process.terminate()
-            try:
-                process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-            if process.stderr is not None:
-                process.stderr.close()
+            _stop(process)
+
+
+def _launch(binary: str, profile: str, width: int, height: int) -> subprocess.Popen[str]:
+    """Start headless Chromium with its own ``profile`` folder, DevTools on a free port."""
+    return subprocess.Popen(
+        [
+            binary,
+            "--headless",
+            "--no-sandbox",
+            "--no-first-run",
+            "--disable-gpu-sandbox",
+            "--enable-unsafe-swiftshader",
+            "--allow-file-access-from-files",
+            f"--user-data-dir={profile}",
+            "--remote-debugging-port=0",
+            f"--window-size={width},{height}",
+            "about:blank",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _open_tab(socket: Any, width: int, height: int) -> Page:
+    """Open a blank tab over ``socket``, enable its events and set the viewport [CSS px]."""
+    target = _call(socket, 1, "Target.createTarget", url="about:blank")["targetId"]
+    session = _call(socket, 2, "Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+    page = Page(socket, session)
+    for domain in ("Page", "Runtime", "Log"):
+        page.send(f"{domain}.enable")
+    page.send(
+        "Emulation.setDeviceMetricsOverride",
+        width=width,
+        height=height,
+        deviceScaleFactor=1,
+        mobile=False,
+    )
+    return page
+
+
+def _stop(process: subprocess.Popen[str]) -> None:
+    """Terminate the browser (kill it after 10 s) and close its stderr pipe."""
+    process.terminate()
+    try:
+        process.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+    if process.stderr is not None:
+        process.stderr.close()
 
 
 def _drain(stream: IO[str] | None) -> None:

@@ -35,6 +35,8 @@ DEFAULT_MAX_BYTES = 2_500_000
 DEFAULT_SIGMA_S = 0.05
 TIP_COLOR = (255, 0, 255)
 _PANEL_INCHES = 2.4
+#: Angles of the manipulability ellipse's outline [rad].
+_ELLIPSE_ANGLES = np.linspace(0.0, 2.0 * np.pi, 48)
 _DPI = 80
 
 
@@ -80,6 +82,24 @@ def _sigma_colour(sigma: float, sigma_s: float) -> tuple[float, float, float]:
     return (0.15 + 0.75 * level, 0.3 * (1 - level), 0.75 * (1 - level) + 0.1 * level)
 
 
+@dataclass
+class _Panel:
+    """One controller's axes, its run and the artists redrawn on every frame."""
+
+    axes: Any
+    run: StoredRun
+    trace: Any
+    ellipse: Any
+    links: Any
+    target: Any
+    tip: Any
+    text: Any
+
+    def artists(self) -> tuple[Any, ...]:
+        """The moving artists, in drawing order."""
+        return (self.trace, self.ellipse, self.links, self.target, self.tip, self.text)
+
+
 def _render(
     robot: Robot,
     title: str,
@@ -87,6 +107,7 @@ def _render(
     plan: FramePlan,
     sigma_s: float,
 ) -> tuple[bytes, list[dict[str, Any]], tuple[int, int]]:
+    """Draw the frames of ``plan`` as a GIF: ``(bytes, per-panel pixel maps, size [px])``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -101,34 +122,11 @@ def _render(
     rows = int(np.ceil(count / columns))
     figure = plt.figure(figsize=(_PANEL_INCHES * columns, _PANEL_INCHES * rows + 0.35), dpi=_DPI)
     figure.suptitle(title, fontsize=9)
-    sigma_max = 1e-9
-    for run in runs:
-        for q in run.q[np.minimum(plan.indices, run.steps - 1)]:
-            if np.all(np.isfinite(q)):
-                sigma_max = max(
-                    sigma_max, float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[0])
-                )
-    ellipse_scale = 0.3 * reach / sigma_max
-    angles = np.linspace(0.0, 2.0 * np.pi, 48)
-    panels = []
-    for i, run in enumerate(runs):
-        axes = figure.add_subplot(rows, columns, i + 1)
-        axes.set_xlim(-reach, reach)
-        axes.set_ylim(-reach, reach)
-        axes.set_aspect("equal")
-        axes.tick_params(labelsize=6, length=2)
-        axes.set_title(run.controller, fontsize=8)
-        desired = run.position_desired
-        axes.plot(desired[:, 0], desired[:, 1], "--", color="0.55", lw=0.9)
-        trace = axes.plot([], [], "-", color="#1f77b4", lw=0.9)[0]
-        ellipse = axes.plot([], [], "-", color="#2ca02c", lw=0.9)[0]
-        links = axes.plot([], [], "-o", lw=2.4, ms=3.0, color="0.3")[0]
-        target = axes.plot([], [], "x", color="0.25", ms=5)[0]
-        tip = axes.plot([], [], "o", ms=4.5, color=np.array(TIP_COLOR) / 255, antialiased=False)[0]
-        text = axes.text(0.03, 0.03, "", transform=axes.transAxes, fontsize=6.5)
-        for artist in (trace, ellipse, links, target, tip, text):
-            artist.set_animated(True)
-        panels.append((axes, run, trace, ellipse, links, target, tip, text))
+    ellipse_scale = 0.3 * reach / _largest_sigma(robot, runs, plan)
+    panels = [
+        _add_panel(figure.add_subplot(rows, columns, i + 1), run, reach)
+        for i, run in enumerate(runs)
+    ]
     figure.tight_layout(rect=(0, 0, 1, 0.97))
     canvas: Any = figure.canvas
     canvas.draw()
@@ -136,47 +134,97 @@ def _render(
     # artists are drawn over a copy of that background (text layout dominates a full draw).
     background = canvas.copy_from_bbox(figure.bbox)
     width, height = figure.canvas.get_width_height()
-    maps = []
-    for axes, *_ in panels:
-        origin = axes.transData.transform((0.0, 0.0))
-        unit = axes.transData.transform((1.0, 1.0)) - origin
-        # image pixel = (sx·x + ox, sy·y + oy); y grows downwards in the image
-        maps.append(
-            {
-                "sx": float(unit[0]),
-                "ox": float(origin[0]),
-                "sy": float(-unit[1]),
-                "oy": float(height - origin[1]),
-            }
-        )
+    maps = [_pixel_map(panel.axes, height) for panel in panels]
     palette = _palette_image()
     images = []
     for k in plan.indices:
         canvas.restore_region(background)
-        for axes, run, trace, ellipse, links, target, tip, text in panels:
-            row = min(int(k), run.steps - 1)
-            q = run.q[row]
-            if not np.all(np.isfinite(q)):
-                continue
-            points = _joints(lengths, q)
-            links.set_data(points[:, 0], points[:, 1])
-            links.set_color(_sigma_colour(float(run.sigma_min[row]), sigma_s))
-            tip.set_data([points[-1, 0]], [points[-1, 1]])
-            target.set_data([run.position_desired[row, 0]], [run.position_desired[row, 1]])
-            trace.set_data(run.position[: row + 1, 0], run.position[: row + 1, 1])
-            u, s, _ = np.linalg.svd(robot.jacobian(q))
-            outline = points[-1][:, None] + ellipse_scale * (u @ np.diag(s)) @ np.vstack(
-                [np.cos(angles), np.sin(angles)]
-            )
-            ellipse.set_data(outline[0], outline[1])
-            text.set_text(f"t = {run.t[row]:.2f} s   σmin = {run.sigma_min[row]:.2e}")
-            for artist in (trace, ellipse, links, target, tip, text):
-                axes.draw_artist(artist)
+        for panel in panels:
+            _draw_panel(panel, int(k), robot, lengths, ellipse_scale, sigma_s)
         rgba = np.asarray(canvas.buffer_rgba())
         frame = Image.fromarray(rgba[:, :, :3].copy())
         images.append(frame.quantize(palette=palette, dither=Image.Dither.NONE))
     plt.close(figure)
-    reference = runs[0]
+    return _encode_gif(images, runs[0], plan), maps, (width, height)
+
+
+def _largest_sigma(robot: Robot, runs: Sequence[StoredRun], plan: FramePlan) -> float:
+    """Largest singular value of ``J`` over the finite frames shown (at least 1e-9)."""
+    sigma_max = 1e-9
+    for run in runs:
+        for q in run.q[np.minimum(plan.indices, run.steps - 1)]:
+            if np.all(np.isfinite(q)):
+                sigma_max = max(
+                    sigma_max, float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[0])
+                )
+    return sigma_max
+
+
+def _add_panel(axes: Any, run: StoredRun, reach: float) -> _Panel:
+    """Set up one controller's axes (limits, title, desired path) and its moving artists."""
+    axes.set_xlim(-reach, reach)
+    axes.set_ylim(-reach, reach)
+    axes.set_aspect("equal")
+    axes.tick_params(labelsize=6, length=2)
+    axes.set_title(run.controller, fontsize=8)
+    desired = run.position_desired
+    axes.plot(desired[:, 0], desired[:, 1], "--", color="0.55", lw=0.9)
+    trace = axes.plot([], [], "-", color="#1f77b4", lw=0.9)[0]
+    ellipse = axes.plot([], [], "-", color="#2ca02c", lw=0.9)[0]
+    links = axes.plot([], [], "-o", lw=2.4, ms=3.0, color="0.3")[0]
+    target = axes.plot([], [], "x", color="0.25", ms=5)[0]
+    tip = axes.plot([], [], "o", ms=4.5, color=np.array(TIP_COLOR) / 255, antialiased=False)[0]
+    text = axes.text(0.03, 0.03, "", transform=axes.transAxes, fontsize=6.5)
+    panel = _Panel(axes, run, trace, ellipse, links, target, tip, text)
+    for artist in panel.artists():
+        artist.set_animated(True)
+    return panel
+
+
+def _pixel_map(axes: Any, height: int) -> dict[str, float]:
+    """Data → image pixel map of ``axes``: pixel = (sx·x + ox, sy·y + oy), y downwards."""
+    origin = axes.transData.transform((0.0, 0.0))
+    unit = axes.transData.transform((1.0, 1.0)) - origin
+    return {
+        "sx": float(unit[0]),
+        "ox": float(origin[0]),
+        "sy": float(-unit[1]),
+        "oy": float(height - origin[1]),
+    }
+
+
+def _draw_panel(
+    panel: _Panel,
+    k: int,
+    robot: Robot,
+    lengths: FloatArray,
+    ellipse_scale: float,
+    sigma_s: float,
+) -> None:
+    """Draw step ``k`` of a panel's run (arm, tip, target, trace, ellipse, text); skip NaN q."""
+    run = panel.run
+    row = min(k, run.steps - 1)
+    q = run.q[row]
+    if not np.all(np.isfinite(q)):
+        return
+    points = _joints(lengths, q)
+    panel.links.set_data(points[:, 0], points[:, 1])
+    panel.links.set_color(_sigma_colour(float(run.sigma_min[row]), sigma_s))
+    panel.tip.set_data([points[-1, 0]], [points[-1, 1]])
+    panel.target.set_data([run.position_desired[row, 0]], [run.position_desired[row, 1]])
+    panel.trace.set_data(run.position[: row + 1, 0], run.position[: row + 1, 1])
+    u, s, _ = np.linalg.svd(robot.jacobian(q))
+    outline = points[-1][:, None] + ellipse_scale * (u @ np.diag(s)) @ np.vstack(
+        [np.cos(_ELLIPSE_ANGLES), np.sin(_ELLIPSE_ANGLES)]
+    )
+    panel.ellipse.set_data(outline[0], outline[1])
+    panel.text.set_text(f"t = {run.t[row]:.2f} s   σmin = {run.sigma_min[row]:.2e}")
+    for artist in panel.artists():
+        panel.axes.draw_artist(artist)
+
+
+def _encode_gif(images: list[Any], reference: StoredRun, plan: FramePlan) -> bytes:
+    """The frames as a looping GIF, timed like ``reference`` (at least 20 ms per frame)."""
     if plan.frames > 1:
         span = float(reference.t[min(int(plan.indices[-1]), reference.steps - 1)] - reference.t[0])
         duration = max(20, int(round(1000.0 * span / (plan.frames - 1))))
@@ -192,7 +240,7 @@ def _render(
         loop=0,
         optimize=False,
     )
-    return buffer.getvalue(), maps, (width, height)
+    return buffer.getvalue()
 
 
 def write_planar_animation(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -68,6 +68,63 @@ def write_replays(
             available), or a robot that cannot be identified; scenarios that could be
             written are written first.
     """
+    root = Path(results_dir)
+    runs = select_runs(discover_runs(root), experiment, controller)
+    scenarios = group_scenarios(runs)
+
+    def emit(text: str) -> None:
+        if not quiet:
+            print(text, file=log if log is not None else sys.stdout)
+
+    written, errors = _write_scenarios(root, scenarios, controller, max_frames, max_bytes, emit)
+    if errors:
+        raise ConfigError("", f"{len(errors)} of {len(scenarios)} replays not written: {errors[0]}")
+    return written
+
+
+def _write_scenarios(
+    root: Path,
+    scenarios: dict[tuple[str, str], list[StoredRun]],
+    controller: str | None,
+    max_frames: int | None,
+    max_bytes: int | None,
+    emit: Callable[[str], None],
+) -> tuple[list[Path], list[str]]:
+    """Write every scenario's replay into ``root/replays``: the files written, the errors."""
+    suffix = (controller,) if controller is not None else ()
+    stems = _unique_stems([key + suffix for key in scenarios])
+    folder = ensure_inside(root, root / REPLAY_FOLDER)
+    written: list[Path] = []
+    errors: list[str] = []
+    robots: dict[str, Robot] = {}
+    for key, group in scenarios.items():
+        title = f"{key[0]} — {key[1]}" + (f" — {controller}" if controller else "")
+        stem = stems[key + suffix]
+        try:
+            robot = robots.get(group[0].experiment) or _robot(group)
+            robots[group[0].experiment] = robot
+            path, note = _write_scenario(
+                root, folder, stem, title, robot, group, max_frames, max_bytes
+            )
+        except OtmmError as error:
+            errors.append(str(error))
+            continue
+        written.append(path)
+        emit(f"replay: {path} ({_size(path.stat().st_size)}, {len(group)} controllers, {note})")
+    return written, errors
+
+
+def _write_scenario(
+    root: Path,
+    folder: Path,
+    stem: str,
+    title: str,
+    robot: Robot,
+    group: Sequence[StoredRun],
+    max_frames: int | None,
+    max_bytes: int | None,
+) -> tuple[Path, str]:
+    """Write one scenario's GIF (planar arm) or HTML page: its path and a note on its frames."""
     from otmm_qp.replay.arm_page import DEFAULT_MAX_FRAME_BYTES, write_arm_page
     from otmm_qp.replay.planar_animation import (
         DEFAULT_MAX_BYTES,
@@ -75,58 +132,27 @@ def write_replays(
         write_planar_animation,
     )
 
-    root = Path(results_dir)
-    runs = select_runs(discover_runs(root), experiment, controller)
-    scenarios = group_scenarios(runs)
-    suffix = (controller,) if controller is not None else ()
-    stems = _unique_stems([key + suffix for key in scenarios])
-    folder = ensure_inside(root, root / REPLAY_FOLDER)
-    written: list[Path] = []
-    errors: list[str] = []
-    robots: dict[str, Robot] = {}
-
-    def emit(text: str) -> None:
-        if not quiet:
-            print(text, file=log if log is not None else sys.stdout)
-
-    for key, group in scenarios.items():
-        title = f"{key[0]} — {key[1]}" + (f" — {controller}" if controller else "")
-        stem = stems[key + suffix]
-        try:
-            robot = robots.get(group[0].experiment) or _robot(group)
-            robots[group[0].experiment] = robot
-            if group[0].dimension == 2:
-                result = write_planar_animation(
-                    ensure_inside(root, folder / f"{stem}.gif"),
-                    title,
-                    robot,
-                    group,
-                    max_frames=max_frames or DEFAULT_MAX_FRAMES,
-                    max_bytes=max_bytes or DEFAULT_MAX_BYTES,
-                )
-                path, note = result.path, result.plan.describe()
-            else:
-                page = write_arm_page(
-                    ensure_inside(root, folder / f"{stem}.html"),
-                    title,
-                    robot,
-                    group,
-                    max_frame_bytes=max_bytes or DEFAULT_MAX_FRAME_BYTES,
-                )
-                for message in page.warnings:
-                    print(f"otmm-qp: {message}", file=sys.stderr)
-                path, note = page.path, page.plan.describe()
-                _write_sidecar(
-                    path, title, "urdf-html", page.plan.frames, [r.controller for r in group]
-                )
-        except OtmmError as error:
-            errors.append(str(error))
-            continue
-        written.append(path)
-        emit(f"replay: {path} ({_size(path.stat().st_size)}, {len(group)} controllers, {note})")
-    if errors:
-        raise ConfigError("", f"{len(errors)} of {len(scenarios)} replays not written: {errors[0]}")
-    return written
+    if group[0].dimension == 2:
+        result = write_planar_animation(
+            ensure_inside(root, folder / f"{stem}.gif"),
+            title,
+            robot,
+            group,
+            max_frames=max_frames or DEFAULT_MAX_FRAMES,
+            max_bytes=max_bytes or DEFAULT_MAX_BYTES,
+        )
+        return result.path, result.plan.describe()
+    page = write_arm_page(
+        ensure_inside(root, folder / f"{stem}.html"),
+        title,
+        robot,
+        group,
+        max_frame_bytes=max_bytes or DEFAULT_MAX_FRAME_BYTES,
+    )
+    for message in page.warnings:
+        print(f"otmm-qp: {message}", file=sys.stderr)
+    _write_sidecar(page.path, title, "urdf-html", page.plan.frames, [r.controller for r in group])
+    return page.path, page.plan.describe()
 
 
 def _robot(group: Sequence[StoredRun]) -> Robot:

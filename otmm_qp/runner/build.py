@@ -272,28 +272,9 @@ def prepare_experiment(
     field = f"{source}: experiments.{index}"
     max_steps = suite.max_steps if max_steps is None else max_steps
     robot = load_robot(config, f"{field}.robot")
-    try:
-        q0 = robot.check_start(np.asarray(config.q0, dtype=float))
-    except OtmmError as error:
-        message = str(error).removeprefix("q0: ")
-        raise ConfigError(f"{field}.q0", message) from error
-    weight = None
-    if config.task_weight is not None:
-        weight = np.asarray(config.task_weight, dtype=float)
-        if weight.shape != (robot.task_dim,):
-            raise ConfigError(
-                f"{field}.task_weight",
-                f"expected shape {(robot.task_dim,)}, got {weight.shape}",
-            )
-    x0 = robot.forward(q0)
-    trajectory: Trajectory = registry.create(
-        registry.TRAJECTORIES,
-        config.trajectory.type,
-        config.trajectory.params,
-        f"{field}.trajectory",
-        start=x0,
-    )
-    trajectory.name = config.trajectory.type
+    q0 = _start_configuration(robot, config, field)
+    weight = _task_weight(robot, config, field)
+    trajectory = _build_trajectory(config, field, robot.forward(q0))
     duration = config.duration if config.duration is not None else trajectory.duration
     dt = config.dt if config.dt is not None else suite.dt
     loop_modes = list(config.loop_modes or suite.loop_modes)
@@ -321,6 +302,41 @@ def prepare_experiment(
         task_weight=weight,
         skipped=skipped,
     )
+
+
+def _start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray:
+    """``config.q0`` as checked by the robot; a ConfigError on ``q0`` gives its reason."""
+    try:
+        return robot.check_start(np.asarray(config.q0, dtype=float))
+    except OtmmError as error:
+        message = str(error).removeprefix("q0: ")
+        raise ConfigError(f"{field}.q0", message) from error
+
+
+def _task_weight(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray | None:
+    """``config.task_weight`` as an array (ConfigError unless of the task's size), or None."""
+    if config.task_weight is None:
+        return None
+    weight = np.asarray(config.task_weight, dtype=float)
+    if weight.shape != (robot.task_dim,):
+        raise ConfigError(
+            f"{field}.task_weight",
+            f"expected shape {(robot.task_dim,)}, got {weight.shape}",
+        )
+    return weight
+
+
+def _build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Trajectory:
+    """The experiment's trajectory from the registry, starting at ``x0``, named by its type."""
+    trajectory: Trajectory = registry.create(
+        registry.TRAJECTORIES,
+        config.trajectory.type,
+        config.trajectory.params,
+        f"{field}.trajectory",
+        start=x0,
+    )
+    trajectory.name = config.trajectory.type
+    return trajectory
 
 
 def _build_controllers(

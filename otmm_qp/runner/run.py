@@ -164,43 +164,62 @@ def run_suite(
     total = sum(len(p.loop_modes) * len(p.controllers) for p in experiments)
     done = 0
     for experiment in experiments:
-        names = [c.name for c in experiment.controllers]
-        writing = [0.0]  # seconds spent writing, kept out of compute_seconds
-
-        def finished(
-            record: RunRecord, names: list[str] = names, writing: list[float] = writing
-        ) -> None:
-            # Each run is on disk (atomically) and in the summary as soon as it ends, so an
-            # interrupted suite is always reportable.
-            outcome.records.append(record)
-            interrupt.check()
-            if out_dir is not None:
-                tic = time.perf_counter()
-                record.result.write_csv(run_csv_path(out_dir, record.result, names))
-                write_summaries(outcome, out_dir)
-                writing[0] += time.perf_counter() - tic
-
-        tic = time.perf_counter()
-        records = run_experiment(experiment, settings, finished)
-        outcome.compute_seconds += time.perf_counter() - tic - writing[0]
+        records = _run_and_write(experiment, settings, outcome, out_dir)
         done += len(records)
         _progress(progress, f"[{done}/{total} runs] {experiment.config.name} done")
-        for record in records:
-            if record.result.error_message:
-                r = record.result
-                outcome.errors.append(
-                    f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}"
-                )
-        for skip in experiment.skipped:
-            outcome.skipped.append((experiment.config.name, skip))
-            _progress(progress, f"{experiment.config.name}/{skip.name}: skipped ({skip.reason})")
-        if out_dir is not None and experiment.skipped:
-            write_summaries(outcome, out_dir)
+        _record_stops_and_skips(outcome, experiment, records, out_dir, progress)
         if after_experiment is not None:
             after_experiment(experiment, records, out_dir)
     if progress is not None and progress.isatty():
         progress.write("\n")
     return outcome
+
+
+def _run_and_write(
+    experiment: PreparedExperiment,
+    settings: MetricSettings,
+    outcome: SuiteResult,
+    out_dir: Path | None,
+) -> list[RunRecord]:
+    """Run one experiment, writing each run as it ends; add its compute time to ``outcome``."""
+    names = [c.name for c in experiment.controllers]
+    writing = 0.0  # seconds spent writing, kept out of compute_seconds
+
+    def finished(record: RunRecord) -> None:
+        # Each run is on disk (atomically) and in the summary as soon as it ends, so an
+        # interrupted suite is always reportable.
+        nonlocal writing
+        outcome.records.append(record)
+        interrupt.check()
+        if out_dir is not None:
+            tic = time.perf_counter()
+            record.result.write_csv(run_csv_path(out_dir, record.result, names))
+            write_summaries(outcome, out_dir)
+            writing += time.perf_counter() - tic
+
+    tic = time.perf_counter()
+    records = run_experiment(experiment, settings, finished)
+    outcome.compute_seconds += time.perf_counter() - tic - writing
+    return records
+
+
+def _record_stops_and_skips(
+    outcome: SuiteResult,
+    experiment: PreparedExperiment,
+    records: list[RunRecord],
+    out_dir: Path | None,
+    progress: TextIO | None,
+) -> None:
+    """Add the experiment's early stops and skipped controllers to ``outcome`` (and summaries)."""
+    for record in records:
+        if record.result.error_message:
+            r = record.result
+            outcome.errors.append(f"{r.experiment}/{r.loop_mode}/{r.controller}: {r.error_message}")
+    for skip in experiment.skipped:
+        outcome.skipped.append((experiment.config.name, skip))
+        _progress(progress, f"{experiment.config.name}/{skip.name}: skipped ({skip.reason})")
+    if out_dir is not None and experiment.skipped:
+        write_summaries(outcome, out_dir)
 
 
 def write_summaries(outcome: SuiteResult, out_dir: Path) -> None:

@@ -112,14 +112,49 @@ def simulate(
             out of range.
         DimensionError: ``q0`` or ``task_weight`` of the wrong shape.
     """
+    q, weight, recorder = _start_run(
+        robot, controller, q0, dt, duration, loop_mode, clik_gain, task_weight
+    )
+    error_message = _run_steps(
+        robot, controller, trajectory, q, weight, recorder, loop_mode, dt, clik_gain, on_step
+    )
+    return recorder.result(controller, loop_mode, dt, experiment, error_message)
+
+
+def _start_run(
+    robot: Robot,
+    controller: Controller,
+    q0: FloatArray,
+    dt: float,
+    duration: float,
+    loop_mode: str,
+    clik_gain: float,
+    task_weight: FloatArray | None,
+) -> tuple[FloatArray, FloatArray | None, RunRecorder]:
+    """Validate the arguments, bind ``controller``, size the recorder: ``(q, weight, recorder)``."""
     q, steps, weight = check_run_arguments(
         robot, q0, dt, duration, loop_mode, clik_gain, task_weight
     )
     controller.bind(robot, dt)
-    recorder = RunRecorder(robot, steps, dt)
+    return q, weight, RunRecorder(robot, steps, dt)
+
+
+def _run_steps(
+    robot: Robot,
+    controller: Controller,
+    trajectory: Trajectory,
+    q: FloatArray,
+    weight: FloatArray | None,
+    recorder: RunRecorder,
+    loop_mode: LoopMode,
+    dt: float,
+    clik_gain: float,
+    on_step: StepObserver | None,
+) -> str | None:
+    """The control loop from ``q``, filling ``recorder``; why it stopped early, or None."""
     qdot_prev = np.zeros(robot.nv)
     error_message = None if np.all(np.isfinite(q)) else "q0: contains NaN or inf; no step taken"
-    for k in range(steps if error_message is None else 0):
+    for k in range(len(recorder.t) if error_message is None else 0):
         tk = float(recorder.t[k])
         desired, desired_velocity = trajectory.sample(tk)
         tic = time.perf_counter()
@@ -143,4 +178,4 @@ def simulate(
             on_step(k, state, command, qdot_prev, output)
         q = robot.integrate(q, output.qdot, dt)
         qdot_prev = output.qdot
-    return recorder.result(controller, loop_mode, dt, experiment, error_message)
+    return error_message

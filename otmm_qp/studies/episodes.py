@@ -18,7 +18,7 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
-from otmm_qp.robots.robot import Robot
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.tasks.generator import Task, TaskGenerator
@@ -163,13 +163,10 @@ def _series(run: RunResult, key: str, stride: int) -> dict[str, Any]:
     }
 
 
-def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
-    """Generate the unit's task and run its episodes, appending rows (never raising)."""
-    from otmm_qp.runner.build import build_controller
-    from otmm_qp.simulation.simulate import simulate
-
-    config, controllers = _study(payload)
-    settings = MetricSettings(**config.metrics.model_dump())
+def _generate_task(
+    config: StudyConfig, unit: WorkUnit
+) -> tuple[Robot | None, FloatArray | None, Task | None, str | None]:
+    """The unit's robot, task weight and task, or (what was built and) the generation error."""
     task: Task | None = None
     task_error: str | None = None
     robot: Robot | None = None
@@ -181,6 +178,25 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         task = _generator(config, unit.generator).generate(robot, unit.seed, weight)
     except Exception as error:  # noqa: BLE001 - a failed task is a row, never a stopped study
         task_error = f"task generation: {one_line(error)}"
+    return robot, weight, task, task_error
+
+
+def _episode_duration(config: StudyConfig, task: Task) -> float:
+    """The task's duration plus the study's extra time, capped at its maximum [s]."""
+    duration = task.duration + config.duration.extra
+    if config.duration.max is not None:
+        duration = min(duration, config.duration.max)
+    return duration
+
+
+def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
+    """Generate the unit's task and run its episodes, appending rows (never raising)."""
+    from otmm_qp.runner.build import build_controller
+    from otmm_qp.simulation.simulate import simulate
+
+    config, controllers = _study(payload)
+    settings = MetricSettings(**config.metrics.model_dump())
+    robot, weight, task, task_error = _generate_task(config, unit)
     for key, controller, mode in unit.episodes:
         row = _base_row(config, controllers, unit, key, controller, mode)
         if task is not None:
@@ -189,9 +205,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             row.update(status="error", error_message=task_error, success=False)
             result.rows.append(row)
             continue
-        duration = task.duration + config.duration.extra
-        if config.duration.max is not None:
-            duration = min(duration, config.duration.max)
+        duration = _episode_duration(config, task)
         row["duration"] = duration
         try:
             built = build_controller(controllers[controller], f"controllers.{controller}")

@@ -214,6 +214,29 @@ def run_study(
     done = stored_keys(out)
     keys = {e.key for e in plan.episodes}
     already = len(keys & done)
+    _write_study_marker(out, plan, source)
+    outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=already)
+    chunks = make_chunks(plan, done)
+    payload = payload_of(plan)
+    writer = PartWriter(out)
+    written: set[str] = set(done)
+    tic = time.perf_counter()
+
+    def consume(results: Iterator[ChunkResult]) -> None:
+        _store_results(results, writer, written, outcome, progress)
+
+    with _sigterm_as_interrupt():
+        try:
+            _feed_chunks(consume, payload, chunks, workers, scheduler, client)
+        except KeyboardInterrupt:
+            outcome.interrupted = True
+    outcome.seconds = time.perf_counter() - tic
+    return outcome
+
+
+def _write_study_marker(out: Path, plan: StudyPlan, source: str) -> None:
+    """Write ``study.json``: the study, its source, config, controllers and episode count."""
+    config = plan.config
     write_marker(
         out,
         {
@@ -225,38 +248,44 @@ def run_study(
             "episodes": len(plan.episodes),
         },
     )
-    outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=already)
-    chunks = make_chunks(plan, done)
-    payload = payload_of(plan)
-    writer = PartWriter(out)
-    written: set[str] = set(done)
-    tic = time.perf_counter()
 
-    def consume(results: Iterator[ChunkResult]) -> None:
-        for result in results:
-            rows = [r for r in result.rows if r["episode_key"] not in written]
-            written.update(r["episode_key"] for r in rows)
-            fresh = {r["episode_key"] for r in rows}
-            series = [s for s in result.series if s["episode_key"] and s["episode_key"][0] in fresh]
-            writer.write(rows, series)
-            failed = sum(1 for r in rows if r.get("status") != "ok")
-            outcome.ran += len(rows)
-            outcome.compute_seconds += result.seconds
-            outcome.failed += failed
-            outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
-            if progress is not None:
-                progress(len(rows), failed)
 
-    with _sigterm_as_interrupt():
-        try:
-            if client is not None:
-                consume(_distributed(client, payload, chunks))
-            elif scheduler is None and workers == 1:
-                consume(_serial(payload, chunks))
-            elif chunks or scheduler is not None:
-                with dask_client(workers, scheduler) as client:
-                    consume(_distributed(client, payload, chunks))
-        except KeyboardInterrupt:
-            outcome.interrupted = True
-    outcome.seconds = time.perf_counter() - tic
-    return outcome
+def _store_results(
+    results: Iterator[ChunkResult],
+    writer: PartWriter,
+    written: set[str],
+    outcome: StudyOutcome,
+    progress: ProgressHook | None,
+) -> None:
+    """Write each chunk's episodes not yet in ``written`` and count them into ``outcome``."""
+    for result in results:
+        rows = [r for r in result.rows if r["episode_key"] not in written]
+        written.update(r["episode_key"] for r in rows)
+        fresh = {r["episode_key"] for r in rows}
+        series = [s for s in result.series if s["episode_key"] and s["episode_key"][0] in fresh]
+        writer.write(rows, series)
+        failed = sum(1 for r in rows if r.get("status") != "ok")
+        outcome.ran += len(rows)
+        outcome.compute_seconds += result.seconds
+        outcome.failed += failed
+        outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
+        if progress is not None:
+            progress(len(rows), failed)
+
+
+def _feed_chunks(
+    consume: Callable[[Iterator[ChunkResult]], None],
+    payload: dict[str, Any],
+    chunks: list[list[WorkUnit]],
+    workers: int | None,
+    scheduler: str | None,
+    client: Any,
+) -> None:
+    """Run ``chunks`` on ``client``, in this process, or on a new Dask client; ``consume`` them."""
+    if client is not None:
+        consume(_distributed(client, payload, chunks))
+    elif scheduler is None and workers == 1:
+        consume(_serial(payload, chunks))
+    elif chunks or scheduler is not None:
+        with dask_client(workers, scheduler) as client:
+            consume(_distributed(client, payload, chunks))

@@ -227,11 +227,32 @@ def _verdicts(rows: Rows, robot: str) -> list[str]:
 
 def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> str:
     """The Markdown report."""
+    out = _overview(config, rows)
+    for robot in rows.robots():
+        out += _verdicts(rows, robot)
+    out.append("")
+    lines, _ = success_table(rows, None)
+    out += ["## All robots", "", *lines, ""]
+    out += [
+        "## Success rate by robot and generator (95 % Wilson CI)",
+        "",
+        *generator_table(rows),
+        "",
+    ]
+    for robot in rows.robots():
+        out += _robot_section(rows, robot)
+    if figures:
+        out += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
+    return "\n".join(out)
+
+
+def _overview(config: StudyConfig, rows: Rows) -> list[str]:
+    """Report title, description, what was run, the success criteria, the verdicts heading."""
     total = len(rows.rows)
     errors = sum(1 for r in rows.rows if r.get("status") == "error")
     tasks = len({(r["robot"], r["generator"], r["task_index"]) for r in rows.rows})
     criteria = config.success.model_dump()
-    out = [
+    return [
         f"# Study {config.name}",
         "",
         config.description,
@@ -248,58 +269,60 @@ def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> 
         "## Verdicts",
         "",
     ]
-    for robot in rows.robots():
-        out += _verdicts(rows, robot)
+
+
+def _robot_section(rows: Rows, robot: str) -> list[str]:
+    """One robot's section: success table, ranking, paired comparisons, σ_min tables."""
+    out = [f"## {robot}", ""]
+    lines, rates = success_table(rows, robot)
+    out += lines + [""]
+    ranking = rank_with_ties(rates, higher_is_better=True)
+    out.append(
+        "Ranking by success rate (= marks a tie: overlapping intervals): "
+        + ", ".join(f"{rank}{'=' if tied else ''} {name}" for name, rank, tied in ranking)
+    )
     out.append("")
-    lines, _ = success_table(rows, None)
-    out += ["## All robots", "", *lines, ""]
-    out += [
-        "## Success rate by robot and generator (95 % Wilson CI)",
+    for metric in PAIRED_METRICS:
+        out += _paired_table(rows, robot, metric)
+    for metric in ("max_error", "max_joint_speed"):
+        out += _sigma_table(rows, robot, metric)
+    return out
+
+
+def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
+    """Markdown table of the paired comparisons of ``metric`` on ``robot`` (Holm p < 0.05: *)."""
+    out = [
+        f"### Paired comparisons on {robot}: {metric} (lower wins)",
         "",
-        *generator_table(rows),
-        "",
+        "| A | B | tasks | A wins | median A−B | Wilcoxon p | Holm p |",
+        "|---|---|---|---|---|---|---|",
     ]
-    for robot in rows.robots():
-        out += [f"## {robot}", ""]
-        lines, rates = success_table(rows, robot)
-        out += lines + [""]
-        ranking = rank_with_ties(rates, higher_is_better=True)
+    for result in paired_for(rows, robot, metric):
         out.append(
-            "Ranking by success rate (= marks a tie: overlapping intervals): "
-            + ", ".join(f"{rank}{'=' if tied else ''} {name}" for name, rank, tied in ranking)
+            f"| {result.a} | {result.b} | {result.pairs} | {_fmt(result.win_rate)} | "
+            f"{_fmt(result.median_difference)} | {_fmt(result.p_value)} | "
+            f"{_fmt(result.p_holm)}{' *' if result.p_holm < 0.05 else ''} |"
         )
-        out.append("")
-        for metric in PAIRED_METRICS:
-            out += [
-                f"### Paired comparisons on {robot}: {metric} (lower wins)",
-                "",
-                "| A | B | tasks | A wins | median A−B | Wilcoxon p | Holm p |",
-                "|---|---|---|---|---|---|---|",
-            ]
-            for result in paired_for(rows, robot, metric):
-                out.append(
-                    f"| {result.a} | {result.b} | {result.pairs} | {_fmt(result.win_rate)} | "
-                    f"{_fmt(result.median_difference)} | {_fmt(result.p_value)} | "
-                    f"{_fmt(result.p_holm)}{' *' if result.p_holm < 0.05 else ''} |"
-                )
-            out.append("")
-        for metric in ("max_error", "max_joint_speed"):
-            centres, curves = sigma_curves(rows, robot, metric)
-            if not curves:
-                continue
-            out += [
-                f"### {robot}: median {metric} vs σ_min at closest approach",
-                "",
-                "| controller | " + " | ".join(f"σ≈{_fmt(c, 2)}" for c in centres) + " |",
-                "|---|" + "---|" * len(centres),
-            ]
-            for name, (medians, counts) in curves.items():
-                cells = [f"{_fmt(m)} (n={c})" for m, c in zip(medians, counts, strict=True)]
-                out.append(f"| {name} | " + " | ".join(cells) + " |")
-            out.append("")
-    if figures:
-        out += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
-    return "\n".join(out)
+    out.append("")
+    return out
+
+
+def _sigma_table(rows: Rows, robot: str, metric: str) -> list[str]:
+    """Markdown table of ``metric``'s binned medians vs σ_min at closest approach (or none)."""
+    centres, curves = sigma_curves(rows, robot, metric)
+    if not curves:
+        return []
+    out = [
+        f"### {robot}: median {metric} vs σ_min at closest approach",
+        "",
+        "| controller | " + " | ".join(f"σ≈{_fmt(c, 2)}" for c in centres) + " |",
+        "|---|" + "---|" * len(centres),
+    ]
+    for name, (medians, counts) in curves.items():
+        cells = [f"{_fmt(m)} (n={c})" for m, c in zip(medians, counts, strict=True)]
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    out.append("")
+    return out
 
 
 def _save(figure: Any, out: Path, name: str) -> str:
@@ -318,82 +341,105 @@ def write_figures(out: Path, rows: Rows) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     (out / "figures").mkdir(exist_ok=True)
     written = []
     for robot in rows.robots():
-        figure, axes = plt.subplots(1, len(MEDIAN_METRICS), figsize=(4 * len(MEDIAN_METRICS), 3.4))
-        for ax, (metric, label, unit) in zip(axes, MEDIAN_METRICS, strict=True):
-            for name in rows.controllers():
-                values = np.sort(
-                    [
-                        v
-                        for v in (
-                            _value(r, metric) for r in rows.select(robot=robot, controller=name)
-                        )
-                        if math.isfinite(v) and v > 0
-                    ]
+        written.append(_ecdf_figure(out, rows, robot))
+        sigma = _sigma_figure(out, rows, robot)
+        if sigma is not None:
+            written.append(sigma)
+        written.append(_pareto_figure(out, rows, robot))
+    return written
+
+
+def _positive_sorted(rows: Rows, robot: str, controller: str, metric: str) -> np.ndarray:
+    """Finite values > 0 of ``metric`` of one controller on ``robot``, sorted."""
+    return np.sort(
+        [
+            v
+            for v in (_value(r, metric) for r in rows.select(robot=robot, controller=controller))
+            if math.isfinite(v) and v > 0
+        ]
+    )
+
+
+def _ecdf_figure(out: Path, rows: Rows, robot: str) -> str:
+    """Write ``robot``'s ECDFs of the median metrics, one panel each; its relative path."""
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(1, len(MEDIAN_METRICS), figsize=(4 * len(MEDIAN_METRICS), 3.4))
+    for ax, (metric, label, unit) in zip(axes, MEDIAN_METRICS, strict=True):
+        for name in rows.controllers():
+            values = _positive_sorted(rows, robot, name, metric)
+            if values.size:
+                ax.step(
+                    values,
+                    np.arange(1, values.size + 1) / values.size,
+                    where="post",
+                    label=name,
                 )
-                if values.size:
-                    ax.step(
-                        values,
-                        np.arange(1, values.size + 1) / values.size,
-                        where="post",
-                        label=name,
-                    )
-            ax.set_xscale("log")
-            ax.set_xlabel(f"{label} [{unit}]")
-            ax.set_ylabel("fraction of episodes")
-        axes[0].legend(fontsize=6)
-        figure.suptitle(f"{robot}: ECDFs")
-        figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
-        written.append(_save(figure, out, f"ecdf-{robot}.png"))
+        ax.set_xscale("log")
+        ax.set_xlabel(f"{label} [{unit}]")
+        ax.set_ylabel("fraction of episodes")
+    axes[0].legend(fontsize=6)
+    figure.suptitle(f"{robot}: ECDFs")
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
+    return _save(figure, out, f"ecdf-{robot}.png")
 
-        figure, axes = plt.subplots(1, 2, figsize=(9, 3.4))
-        drawn = False
-        for ax, metric in zip(axes, ("max_error", "max_joint_speed"), strict=True):
-            centres, curves = sigma_curves(rows, robot, metric)
-            for name, (medians, _) in curves.items():
-                ax.plot(centres, medians, marker="o", label=name)
-                drawn = True
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set_xlabel("σ_min at closest approach")
-            ax.set_ylabel(f"median {metric}")
-        if drawn:
-            axes[0].legend(fontsize=6)
-            figure.suptitle(f"{robot}: metrics vs σ_min at closest approach")
-            figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
-            written.append(_save(figure, out, f"sigma-{robot}.png"))
-        else:
-            plt.close(figure)
 
-        errors = median_intervals(rows, robot, "max_error")
-        speeds = median_intervals(rows, robot, "max_joint_speed")
-        figure, ax = plt.subplots(figsize=(5.5, 4.2))
-        for name in errors:
-            e, s = errors[name], speeds[name]
-            if not (math.isfinite(e[0]) and math.isfinite(s[0])):
-                continue
-            ax.errorbar(
-                s[0],
-                e[0],
-                xerr=[[s[0] - s[1]], [s[2] - s[0]]],
-                yerr=[[e[0] - e[1]], [e[2] - e[0]]],
-                fmt="o",
-                capsize=2,
-                label=name,
-            )
+def _sigma_figure(out: Path, rows: Rows, robot: str) -> str | None:
+    """Write ``robot``'s medians vs σ_min at closest approach; its relative path, or None."""
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    drawn = False
+    for ax, metric in zip(axes, ("max_error", "max_joint_speed"), strict=True):
+        centres, curves = sigma_curves(rows, robot, metric)
+        for name, (medians, _) in curves.items():
+            ax.plot(centres, medians, marker="o", label=name)
+            drawn = True
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("median peak joint speed [rad/s]")
-        ax.set_ylabel("median max error [m]")
-        ax.legend(fontsize=6)
-        ax.set_title(f"{robot}: Pareto (lower-left is better)")
-        figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
-        written.append(_save(figure, out, f"pareto-{robot}.png"))
-    return written
+        ax.set_xlabel("σ_min at closest approach")
+        ax.set_ylabel(f"median {metric}")
+    if not drawn:
+        plt.close(figure)
+        return None
+    axes[0].legend(fontsize=6)
+    figure.suptitle(f"{robot}: metrics vs σ_min at closest approach")
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
+    return _save(figure, out, f"sigma-{robot}.png")
+
+
+def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
+    """Write ``robot``'s median max error vs median peak joint speed, with CIs; its path."""
+    import matplotlib.pyplot as plt
+
+    errors = median_intervals(rows, robot, "max_error")
+    speeds = median_intervals(rows, robot, "max_joint_speed")
+    figure, ax = plt.subplots(figsize=(5.5, 4.2))
+    for name in errors:
+        e, s = errors[name], speeds[name]
+        if not (math.isfinite(e[0]) and math.isfinite(s[0])):
+            continue
+        ax.errorbar(
+            s[0],
+            e[0],
+            xerr=[[s[0] - s[1]], [s[2] - s[0]]],
+            yerr=[[e[0] - e[1]], [e[2] - e[0]]],
+            fmt="o",
+            capsize=2,
+            label=name,
+        )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("median peak joint speed [rad/s]")
+    ax.set_ylabel("median max error [m]")
+    ax.legend(fontsize=6)
+    ax.set_title(f"{robot}: Pareto (lower-left is better)")
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
+    return _save(figure, out, f"pareto-{robot}.png")
 
 
 def write_study_report(out: Path) -> tuple[Path, Path]:

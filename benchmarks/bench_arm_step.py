@@ -7,17 +7,21 @@ Run: ``python benchmarks/bench_arm_step.py [--steps N]``; prints median / p90 [Â
 
 from __future__ import annotations
 
-import argparse
-import time
-from collections.abc import Callable, Sequence
-from typing import Any
+from otmm_qp.blas_threads import prefer_single_threaded_blas
 
-import numpy as np
+prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI runs
 
-from otmm_qp import registry
-from otmm_qp.controller import Controller
-from otmm_qp.robots.robot import Robot
-from otmm_qp.state import KinematicState
+import argparse  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable, Sequence  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from otmm_qp import registry  # noqa: E402
+from otmm_qp.controller import Controller  # noqa: E402
+from otmm_qp.robots.robot import Robot  # noqa: E402
+from otmm_qp.state import KinematicState  # noqa: E402
 
 DT = 0.01  # [s]
 THETA = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])  # Panda ready pose [rad]

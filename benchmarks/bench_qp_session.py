@@ -18,20 +18,24 @@ Run: ``python benchmarks/bench_qp_session.py [--steps N] [--rounds R]``.
 
 from __future__ import annotations
 
-import argparse
-import time
-from collections.abc import Callable
+from otmm_qp.blas_threads import prefer_single_threaded_blas
 
-import numpy as np
+prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI runs
 
-from otmm_qp.controller import Controller
-from otmm_qp.filters.otmm import OtmmFilter
-from otmm_qp.robots.pinocchio_arm import PinocchioArm
-from otmm_qp.robots.robot import FloatArray
-from otmm_qp.simulation.simulate import simulate
-from otmm_qp.state import KinematicState
-from otmm_qp.trajectories.pose import PoseCircleTrajectory
-from otmm_qp_controllers.qp import QpBackend
+import argparse  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from otmm_qp.controller import Controller  # noqa: E402
+from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
+from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
+from otmm_qp.robots.robot import FloatArray  # noqa: E402
+from otmm_qp.simulation.simulate import simulate  # noqa: E402
+from otmm_qp.state import KinematicState  # noqa: E402
+from otmm_qp.trajectories.pose import PoseCircleTrajectory  # noqa: E402
+from otmm_qp_controllers.qp import QpBackend  # noqa: E402
 
 DT = 0.01  # [s]
 CLIK_GAIN = 10.0  # [1/s]

@@ -7,12 +7,16 @@ the Markdown tables.
 
 from __future__ import annotations
 
-import argparse
-from collections.abc import Sequence
-from pathlib import Path
+from otmm_qp.blas_threads import prefer_single_threaded_blas
 
-from otmm_qp.bench import run_bench
-from otmm_qp.bench.run import ROUNDS
+prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI runs
+
+import argparse  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from otmm_qp.bench import run_bench  # noqa: E402
+from otmm_qp.bench.run import ROUNDS  # noqa: E402
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -9,24 +9,28 @@ OTMM (paper form, cbrt) + pinv and the added µs. Run: ``python benchmarks/bench
 
 from __future__ import annotations
 
-import argparse
-import time
+from otmm_qp.blas_threads import prefer_single_threaded_blas
 
-import numpy as np
+prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI runs
 
-from otmm_qp.controller import Controller
-from otmm_qp.filters.direction_aware_otmm import DirectionAwareOtmmFilter
-from otmm_qp.filters.otmm import OtmmFilter
-from otmm_qp.robots.pinocchio_arm import PinocchioArm
-from otmm_qp.simulation.loop_modes import commanded_velocity
-from otmm_qp.simulation.simulate import simulate
-from otmm_qp.state import KinematicState
-from otmm_qp.trajectories.pose import PoseLineTrajectory
-from otmm_qp_controllers.dls import DampedLeastSquaresBackend
-from otmm_qp_controllers.jparse import JParseBackend
-from otmm_qp_controllers.manipulability import ManipulabilityBackend
-from otmm_qp_controllers.pinv import PseudoInverseBackend
-from otmm_qp_controllers.sns import SnsBackend
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from otmm_qp.controller import Controller  # noqa: E402
+from otmm_qp.filters.direction_aware_otmm import DirectionAwareOtmmFilter  # noqa: E402
+from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
+from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
+from otmm_qp.simulation.loop_modes import commanded_velocity  # noqa: E402
+from otmm_qp.simulation.simulate import simulate  # noqa: E402
+from otmm_qp.state import KinematicState  # noqa: E402
+from otmm_qp.trajectories.pose import PoseLineTrajectory  # noqa: E402
+from otmm_qp_controllers.dls import DampedLeastSquaresBackend  # noqa: E402
+from otmm_qp_controllers.jparse import JParseBackend  # noqa: E402
+from otmm_qp_controllers.manipulability import ManipulabilityBackend  # noqa: E402
+from otmm_qp_controllers.pinv import PseudoInverseBackend  # noqa: E402
+from otmm_qp_controllers.sns import SnsBackend  # noqa: E402
 
 REFERENCE = "otmm+pinv"
 DT = 0.01  # [s]

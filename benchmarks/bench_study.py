@@ -14,15 +14,19 @@ share rounds to zero are left out), runs it (1) in-process without Dask and (2) 
 
 from __future__ import annotations
 
-import argparse
-import json
-import tempfile
-import time
-from pathlib import Path
+from otmm_qp.blas_threads import prefer_single_threaded_blas
 
-from otmm_qp.studies.execute import dask_client, run_study
-from otmm_qp.studies.schema import StudyConfig
-from otmm_qp.studies.spec import load_study, plan_study
+prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI runs
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from otmm_qp.studies.execute import dask_client, run_study  # noqa: E402
+from otmm_qp.studies.schema import StudyConfig  # noqa: E402
+from otmm_qp.studies.spec import load_study, plan_study  # noqa: E402
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "configs" / "studies" / "arms.yaml"
 

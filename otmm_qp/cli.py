@@ -14,8 +14,12 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from otmm_qp.exceptions import OtmmError
-from otmm_qp.runner import interrupt
+from otmm_qp.blas_threads import prefer_single_threaded_blas
+
+prefer_single_threaded_blas()  # before anything imports NumPy (see otmm_qp.blas_threads)
+
+from otmm_qp.exceptions import OtmmError  # noqa: E402
+from otmm_qp.runner import interrupt  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130

@@ -11,12 +11,13 @@ import sys
 import time
 from pathlib import Path
 
+import dask
 import pytest
 import yaml
 
 from otmm_qp.cli import main
 from otmm_qp.studies.episodes import TIMING_METRICS
-from otmm_qp.studies.execute import run_study
+from otmm_qp.studies.execute import dask_client, run_study
 from otmm_qp.studies.spec import load_study, parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
 
@@ -96,9 +97,15 @@ def test_serial_rows_are_complete(serial_out: Path) -> None:
 
 
 def test_local_cluster_gives_identical_rows(serial_out: Path, tmp_path: Path) -> None:
+    """Identical rows on a LocalCluster(2) — twice on one client (the same payload scattered
+    again must not race the release of the first study's copy), with quiet workers."""
     plan = plan_study(parse_study(TINY))
-    run_study(plan, tmp_path, "tiny", workers=2)
-    assert _rows(tmp_path) == _rows(serial_out)
+    with dask_client(2, None) as client:
+        quiet = client.run(lambda: dask.config.get("distributed.worker.profile.enabled"))
+        assert set(quiet.values()) == {False}
+        run_study(plan, tmp_path / "first", "tiny", workers=2, client=client)
+        run_study(plan, tmp_path / "second", "tiny", workers=2, client=client)
+    assert _rows(tmp_path / "first") == _rows(serial_out) == _rows(tmp_path / "second")
 
 
 def test_resume_after_interrupt_adds_only_missing(serial_out: Path, tmp_path: Path) -> None:

@@ -271,3 +271,19 @@ def test_position_limit_override_reaches_the_peer_in_a_run(
     assert result.error_message is None
     assert float(np.max(result.q[:, 0])) <= 1.0 + 1e-9
     assert float(np.max(result.q[:, 0])) > 0.95  # the limit was really approached
+
+
+def test_pink_limit_warning_is_dropped_and_nothing_else(
+    peer_entry_points: None, caplog: pytest.LogCaptureFixture
+) -> None:
+    """pink logs one root-logger line per step beyond a limit: the bound adapter drops it."""
+    pytest.importorskip("pink")
+    import logging
+
+    from otmm_qp.peers.pink_backend import PINK_LIMIT_WARNING, PinkBackend
+
+    PinkBackend(solver="daqp").bind(PlanarArm([1.0, 0.8]), 0.01)
+    with caplog.at_level(logging.WARNING):
+        logging.warning(PINK_LIMIT_WARNING, -3.141594, 2, -3.141593, 3.141593)
+        logging.warning("another warning stays")
+    assert [r.getMessage() for r in caplog.records] == ["another warning stays"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,24 @@ from otmm_qp.peers.peer_backend import PeerBackend, require
 from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+
+#: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
+#: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
+PINK_LIMIT_WARNING = "Value %f at index %d is out of limits: [%f, %f]"
+
+
+class _DropPinkLimitWarnings(logging.Filter):
+    """Drops :data:`PINK_LIMIT_WARNING` records; every other record passes.
+
+    The harness counts limit violations itself (metrics); pink's one line per step flooded a
+    study's terminal (52 lines in the first minutes of the arms study).
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.msg != PINK_LIMIT_WARNING
+
+
+_PINK_FILTER = _DropPinkLimitWarnings()
 
 
 class PinkBackend(PeerBackend):
@@ -67,6 +86,7 @@ class PinkBackend(PeerBackend):
         from pink.limits import ConfigurationLimit, VelocityLimit
 
         super().bind(robot, dt)
+        logging.getLogger().addFilter(_PINK_FILTER)  # idempotent: a filter is added once
         self._solve_ik = pink.solve_ik
         self._pinocchio = PinocchioPeerModel.create(self.description, robot)
         model = limited_model(self._pinocchio.model, robot)

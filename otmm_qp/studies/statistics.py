@@ -38,10 +38,11 @@ def bootstrap_median(
     """Median and its percentile-bootstrap interval ``(median, low, high)``; NaNs for no data.
 
     Resamples with replacement (``numpy.random.default_rng(seed)``), takes the medians and
-    their ``(1 ± confidence)/2`` quantiles.
+    their ``(1 ± confidence)/2`` quantiles. The values are sorted first, so the interval does
+    not depend on their order (a Dask study stores episodes in completion order).
     """
     data = np.asarray(values, dtype=float)
-    data = data[np.isfinite(data)]
+    data = np.sort(data[np.isfinite(data)])
     if data.size == 0:
         return math.nan, math.nan, math.nan
     rng = np.random.default_rng(seed)

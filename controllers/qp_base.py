@@ -101,7 +101,6 @@ class BoxQpBackend(Backend):
         self._euclidean = robot.nq == robot.nv
         self.bounds = np.empty((2, nv))
         self._scratch = np.empty((2, nv))
-        self._active_scratch = np.empty((2, 2, nv))
         self.reset()
 
     def reset(self) -> None:
@@ -143,7 +142,7 @@ class BoxQpBackend(Backend):
 
     def inside_status(self, qdot: FloatArray, tol: float) -> Status | None:
         """:meth:`classify` for ``qdot`` inside the box; None when it is outside (or NaN)."""
-        active = active_bound(qdot, self.bounds, tol, self._active_scratch)
+        active = active_bound(qdot, self.bounds, tol)
         if active is None:
             return None
         return Status.BOUNDED if active else Status.OK

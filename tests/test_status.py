@@ -156,3 +156,15 @@ def test_diverging_speed_is_configurable_and_validated() -> None:
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ParameterError, match="divergence_speed"):
             Controller("c", [], Constant(), divergence_speed=bad)
+
+
+def test_unconstrained_output_is_exceeds_speed_limits() -> None:
+    """The bound backend's pre-scaled test equals the reference rule, at the tolerance edge too."""
+    backend = PseudoInverseBackend()
+    backend.bind(LIMITED, DT)
+    rng = np.random.default_rng(2)
+    edges = [2.0 * (1 + 1e-10), 2.0 * (1 + 1e-8), 2.0, -2.0 * (1 + 1e-8)]
+    samples = [rng.uniform(-2.5, 2.5, 2) for _ in range(200)] + [np.array([e, 0.0]) for e in edges]
+    for qdot in samples:
+        saturated = backend.unconstrained_output(qdot).status == Status.SATURATED
+        assert saturated == exceeds_speed_limits(qdot, LIMITED.velocity_limits)

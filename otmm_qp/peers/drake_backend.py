@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import logging
 from typing import Any
 
 import numpy as np
@@ -138,7 +139,15 @@ def _welded_plant(description: PeerDescription) -> Any:
     pin_model, frame_id = pinocchio_model(description)
     urdf = peer_urdf(description, keep_geometry=False)
     plant = plants.MultibodyPlant(time_step=0.0)
-    parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
+    # Drake warns once per URDF tag it ignores (safety_controller, a locked finger's mimic):
+    # harmless for kinematics, and a page of noise before every run's output.
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.ERROR)
+    try:
+        parsing.Parser(plant).AddModelsFromString(urdf, "urdf")
+    finally:
+        drake_log.setLevel(level)
     base = root_link(urdf)
     if base != "world":  # Drake merges a URDF link named "world" into its world body
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base))

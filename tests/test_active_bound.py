@@ -1,0 +1,52 @@
+"""``active_bound``: the scalar loop equals the array formulation; infinite bounds never active."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
+from otmm_qp_controllers.qp import QpBackend
+from otmm_qp_controllers.qp_problem import active_bound
+
+TOL = 1e-9
+finite = st.floats(-5.0, 5.0, allow_nan=False)
+bound = st.one_of(finite, st.just(np.inf), st.just(-np.inf))
+
+
+def reference(qdot: np.ndarray, bounds: np.ndarray, tol: float) -> bool | None:
+    """The array form: inside the box, then |margin| ≤ τ(1 + |bound|) on a finite bound."""
+    margins = np.array([qdot - bounds[0], bounds[1] - qdot])
+    if not (margins >= 0.0).all():
+        return None
+    near = (margins <= tol * (1.0 + np.abs(bounds))) & np.isfinite(bounds)
+    return bool(near.any())
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(finite, bound, bound, st.booleans()), min_size=1, max_size=9))
+def test_loop_equals_array_form(rows: list[tuple[float, float, float, bool]]) -> None:
+    qdot = np.array([r[0] for r in rows])
+    lower = np.array([min(r[1], r[2]) for r in rows])
+    upper = np.array([max(r[1], r[2]) for r in rows])
+    snap = np.array([r[3] for r in rows])  # put some q̇_i exactly on a finite bound
+    on_lower = snap & np.isfinite(lower)
+    qdot[on_lower] = lower[on_lower]
+    bounds = np.array([lower, upper])
+    assert active_bound(qdot, bounds, TOL) == reference(qdot, bounds, TOL)
+
+
+def test_nan_is_outside() -> None:
+    assert active_bound(np.array([np.nan, 0.0]), np.array([[-1.0, -1.0], [1.0, 1.0]]), TOL) is None
+
+
+def test_qp_on_an_arm_without_limits_reports_ok() -> None:
+    """Unlimited joints have ±inf bounds: never 'bounded' (they were, before the fix)."""
+    arm = PlanarArm([1.0, 0.8])
+    backend = QpBackend(solver="daqp")
+    backend.bind(arm, 0.01)
+    state = KinematicState.compute(arm, np.array([0.3, 0.5]))
+    assert backend.solve(state, np.array([0.1, 0.0]), np.zeros(2)).status == Status.OK

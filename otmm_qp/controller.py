@@ -53,12 +53,18 @@ class Controller:
         backend: Backend,
         divergence_speed: float = DIVERGENCE_SPEED,
     ) -> None:
-        if not divergence_speed > 0.0:  # also refuses NaN
-            raise ParameterError("divergence_speed", f"must be > 0 [rad/s], got {divergence_speed}")
+        try:
+            speed = float(divergence_speed)
+        except (TypeError, ValueError):
+            speed = math.nan
+        if not speed > 0.0:  # also refuses NaN; inf turns the check off
+            raise ParameterError(
+                "divergence_speed", f"must be a number > 0 [rad/s], got {divergence_speed!r:.40}"
+            )
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
-        self.divergence_speed = float(divergence_speed)
+        self.divergence_speed = speed
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Prepare for a run on ``robot`` with period ``dt`` [s]."""

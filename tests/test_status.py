@@ -153,7 +153,7 @@ def test_diverging_speed_is_configurable_and_validated() -> None:
     strict = Controller("c", [], Constant(), divergence_speed=2.0)
     strict.bind(UNLIMITED, DT)
     assert strict.step(state, np.zeros(2), np.zeros(2)).backend.status == Status.DIVERGING
-    for bad in (0.0, -1.0, float("nan")):
+    for bad in (0.0, -1.0, float("nan"), "fast", None):
         with pytest.raises(ParameterError, match="divergence_speed"):
             Controller("c", [], Constant(), divergence_speed=bad)
 

@@ -28,10 +28,15 @@ from otmm_qp.studies.storage import PartWriter, prepare_directory, stored_keys, 
 
 #: Seconds allowed to connect to an external scheduler.
 CONNECT_TIMEOUT = 10.0
-#: Dask settings of the embedded LocalCluster's workers: no stack profiler, no GIL monitor.
+#: Dask settings of the embedded LocalCluster's workers: no stack profiler or GIL monitor, and
+#: event-loop housekeeping at 1-2 s instead of 20-500 ms (each wake-up takes the GIL from the
+#: running episode). See docs/studies.md for the measured effect of each.
 QUIET_WORKERS = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
 }
 
 

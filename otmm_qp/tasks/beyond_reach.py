@@ -8,7 +8,7 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_range, draw
+from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, check_range, draw
 from otmm_qp.tasks.search import (
     base_position,
     position_of,
@@ -41,9 +41,7 @@ class BeyondReachGenerator(TaskGenerator):
         self.overshoot = check_range("overshoot", overshoot, lower=1.0)
         if not self.overshoot[0] > 1.0:
             raise ParameterError("overshoot", f"must be > 1, got {list(overshoot)}")
-        self.duration = check_range("duration", duration)
-        if not self.duration[0] > 0.0:
-            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+        self.duration = check_duration(duration)
 
     def generate(self, robot: Robot, seed: int, task_weight: FloatArray | None = None) -> Task:
         """Draw the task of ``seed`` (see the class docstring)."""

@@ -10,7 +10,14 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerationError, TaskGenerator, check_range, draw
+from otmm_qp.tasks.generator import (
+    Task,
+    TaskGenerationError,
+    TaskGenerator,
+    check_duration,
+    check_range,
+    draw,
+)
 from otmm_qp.tasks.search import (
     base_position,
     position_of,
@@ -77,9 +84,7 @@ class BoundaryGenerator(TaskGenerator):
         self.sweep = check_range("sweep", sweep)
         if not self.sweep[0] > 0.0:
             raise ParameterError("sweep", f"must be > 0 [rad], got {list(sweep)}")
-        self.duration = check_range("duration", duration)
-        if not self.duration[0] > 0.0:
-            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+        self.duration = check_duration(duration)
         if int(attempts) < 1:
             raise ParameterError("attempts", f"must be >= 1, got {attempts}")
         self.attempts = int(attempts)

@@ -74,6 +74,18 @@ def check_range(name: str, value: Sequence[float], lower: float = 0.0) -> tuple[
     return pair[0], pair[1]
 
 
+def check_duration(value: Sequence[float]) -> tuple[float, float]:
+    """Validate a ``duration: [low, high]`` [s] parameter: :func:`check_range` with ``low > 0``.
+
+    Raises:
+        ParameterError: Naming ``duration``.
+    """
+    pair = check_range("duration", value)
+    if not pair[0] > 0.0:
+        raise ParameterError("duration", f"must be > 0 [s], got {list(value)}")
+    return pair
+
+
 def draw(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     """Uniform draw in ``[low, high]`` (the value itself when ``low == high``)."""
     return float(rng.uniform(bounds[0], bounds[1])) if bounds[1] > bounds[0] else bounds[0]

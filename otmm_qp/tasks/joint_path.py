@@ -8,7 +8,7 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_range, draw
+from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, check_range, draw
 from otmm_qp.tasks.search import clip_coordinates, sigma_min_at
 from otmm_qp.tasks.singular import SingularSearch
 from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
@@ -50,9 +50,7 @@ class JointPathGenerator(TaskGenerator):
         self.half_span = check_range("half_span", half_span)
         if not self.half_span[0] > 0.0:
             raise ParameterError("half_span", f"must be > 0 [rad], got {list(half_span)}")
-        self.duration = check_range("duration", duration)
-        if not self.duration[0] > 0.0:
-            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+        self.duration = check_duration(duration)
         self.return_to_start = bool(return_to_start)
         self.search = SingularSearch(sigma_tolerance, restarts, iterations)
 

@@ -10,7 +10,14 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerationError, TaskGenerator, check_range, draw
+from otmm_qp.tasks.generator import (
+    Task,
+    TaskGenerationError,
+    TaskGenerator,
+    check_duration,
+    check_range,
+    draw,
+)
 from otmm_qp.tasks.search import position_of, sigma_min_at, solve_ik, with_position
 from otmm_qp.tasks.singular import SingularSearch
 from otmm_qp.trajectories.circle import CircleTrajectory
@@ -85,9 +92,7 @@ class NearSingularGenerator(TaskGenerator):
         self.length = check_range("length", length)
         if not self.length[0] > 0.0:
             raise ParameterError("length", f"must be > 0 [m], got {list(length)}")
-        self.duration = check_range("duration", duration)
-        if not self.duration[0] > 0.0:
-            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+        self.duration = check_duration(duration)
         self.arc_radius = check_range("arc_radius", arc_radius)
         if not self.arc_radius[0] > 0.0:
             raise ParameterError("arc_radius", f"must be > 0 [m], got {list(arc_radius)}")

@@ -7,9 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_range, draw
+from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, draw
 from otmm_qp.tasks.search import position_of, random_coordinates, sigma_min_at
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 
@@ -29,9 +28,7 @@ class RandomReachableGenerator(TaskGenerator):
     name = "random_reachable"
 
     def __init__(self, duration: Sequence[float] = (2.0, 3.0)) -> None:
-        self.duration = check_range("duration", duration)
-        if not self.duration[0] > 0.0:
-            raise ParameterError("duration", f"must be > 0 [s], got {list(duration)}")
+        self.duration = check_duration(duration)
 
     def generate(self, robot: Robot, seed: int, task_weight: FloatArray | None = None) -> Task:
         """Draw the task of ``seed`` (see the class docstring)."""

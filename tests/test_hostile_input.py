@@ -213,6 +213,15 @@ def test_colliding_and_reserved_controller_names_keep_every_file(tmp_path: Path)
     assert "comparison.csv" not in csvs
 
 
+def _run_good(tmp_path: Path) -> Path:
+    """Run the GOOD config into ``tmp_path/out`` (no figures); the results folder."""
+    config = tmp_path / "c.yaml"
+    config.write_text(GOOD)
+    out = tmp_path / "out"
+    assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    return out
+
+
 def test_reuse_needs_force_and_lock_blocks_concurrent_run(tmp_path: Path) -> None:
     import fcntl
 
@@ -252,10 +261,7 @@ def test_report_on_damaged_folder_is_one_line(
 
 
 def test_report_survives_nan_and_truncated_rows(tmp_path: Path) -> None:
-    config = tmp_path / "c.yaml"
-    config.write_text(GOOD)
-    out = tmp_path / "out"
-    assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    out = _run_good(tmp_path)
     summary = out / "summary.csv"
     header, row = summary.read_text().splitlines()[:2]
     cells = row.split(",")
@@ -266,10 +272,7 @@ def test_report_survives_nan_and_truncated_rows(tmp_path: Path) -> None:
 
 
 def test_report_never_follows_symlinks_out(tmp_path: Path) -> None:
-    config = tmp_path / "c.yaml"
-    config.write_text(GOOD)
-    out = tmp_path / "out"
-    assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    out = _run_good(tmp_path)
     secret = tmp_path / "secret.png"
     secret.write_bytes(b"SECRET-CONTENT")
     (out / "x.png").symlink_to(secret)
@@ -286,10 +289,7 @@ def test_report_never_follows_symlinks_out(tmp_path: Path) -> None:
 
 
 def test_report_flags_relaxed_bounds(tmp_path: Path) -> None:
-    config = tmp_path / "c.yaml"
-    config.write_text(GOOD)
-    out = tmp_path / "out"
-    assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    out = _run_good(tmp_path)
     summary = out / "summary.csv"
     header, row = summary.read_text().splitlines()[:2]
     summary.write_text(f"{header},status_relaxed\n{row},7\n")
@@ -305,10 +305,7 @@ def test_report_on_read_only_folder(
     Root ignores file modes, so the refusal is made where every write goes through
     (``tempfile.mkstemp`` in the atomic writer) as well as by the mode bits.
     """
-    config = tmp_path / "c.yaml"
-    config.write_text(GOOD)
-    out = tmp_path / "out"
-    assert main(["run", str(config), "--out", str(out), "--quiet", "--figures", "none"]) == 0
+    out = _run_good(tmp_path)
     summary_before = (out / "summary.csv").read_bytes()
     capsys.readouterr()
 

@@ -58,16 +58,25 @@ class Status(str, enum.Enum):
         return str(self.value)
 
 
-def exceeds_speed_limits(qdot: FloatArray, velocity_limits: FloatArray) -> bool:
+def speed_limit_thresholds(velocity_limits: FloatArray) -> FloatArray:
+    r"""The thresholds :math:`\dot q_{max,i}(1 + 10^{-9})` [rad/s or m/s], shape ``(nv,)``.
+
+    Computed once per run (a backend's ``bind``), so the per-step test is one comparison.
+    """
+    return np.asarray(velocity_limits, dtype=float) * (1.0 + SPEED_LIMIT_RTOL)
+
+
+def exceeds_speed_limits(qdot: FloatArray, thresholds: FloatArray) -> bool:
     r"""Whether :math:`|\dot q_i| > \dot q_{max,i}(1 + 10^{-9})` for some joint ``i``.
 
     Args:
         qdot: Joint velocity [rad/s or m/s], shape ``(nv,)``.
-        velocity_limits: ``q̇_max`` [rad/s or m/s], shape ``(nv,)``, inf where unlimited.
+        thresholds: :func:`speed_limit_thresholds` of the limits, shape ``(nv,)``, inf where
+            unlimited.
     """
-    # One comparison and the array method (no np.max wrapper): this runs on every step.
-    # inf limits never compare smaller; a NaN speed compares False (the nonfinite guard reports it).
-    return bool((np.abs(qdot) > velocity_limits * (1.0 + SPEED_LIMIT_RTOL)).any())
+    # inf thresholds never compare smaller; a NaN speed compares False (the nonfinite guard
+    # reports it).
+    return bool((np.abs(qdot) > thresholds).any())
 
 
 #: Statuses a ``diverging`` step overrides: the ones that claim a usable solution.

@@ -12,7 +12,13 @@ from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
-from otmm_qp.status import DIVERGENCE_SPEED, Status, classify_divergence, exceeds_speed_limits
+from otmm_qp.status import (
+    DIVERGENCE_SPEED,
+    Status,
+    classify_divergence,
+    exceeds_speed_limits,
+    speed_limit_thresholds,
+)
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend
 from otmm_qp_controllers.dls_adaptive import AdaptiveDampedLeastSquaresBackend
 from otmm_qp_controllers.dls_sigma import SigmaDampedLeastSquaresBackend
@@ -43,7 +49,7 @@ def test_status_is_a_str_enum_with_the_old_names_as_aliases() -> None:
 
 
 def test_exceeds_speed_limits_boundary() -> None:
-    limits = np.array([2.0, np.inf])
+    limits = speed_limit_thresholds(np.array([2.0, np.inf]))
     assert not exceeds_speed_limits(np.array([2.0, 1e6]), limits)  # at the limit; inf: never
     assert not exceeds_speed_limits(np.array([-2.0 * (1 + 1e-10), 0.0]), limits)  # tolerance
     assert exceeds_speed_limits(np.array([-2.0 * (1 + 1e-8), 0.0]), limits)
@@ -165,6 +171,7 @@ def test_unconstrained_output_is_exceeds_speed_limits() -> None:
     rng = np.random.default_rng(2)
     edges = [2.0 * (1 + 1e-10), 2.0 * (1 + 1e-8), 2.0, -2.0 * (1 + 1e-8)]
     samples = [rng.uniform(-2.5, 2.5, 2) for _ in range(200)] + [np.array([e, 0.0]) for e in edges]
+    thresholds = speed_limit_thresholds(LIMITED.velocity_limits)
     for qdot in samples:
         saturated = backend.unconstrained_output(qdot).status == Status.SATURATED
-        assert saturated == exceeds_speed_limits(qdot, LIMITED.velocity_limits)
+        assert saturated == exceeds_speed_limits(qdot, thresholds)

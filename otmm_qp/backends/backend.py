@@ -9,7 +9,7 @@ import numpy as np
 
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.status import SPEED_LIMIT_RTOL, Status
+from otmm_qp.status import Status, exceeds_speed_limits, speed_limit_thresholds
 
 # Aliases of the Status members, kept importable for code written before the enum.
 STATUS_OK: Final = Status.OK
@@ -76,9 +76,8 @@ class Backend(abc.ABC):
         self.robot = robot
         self.dt = dt
         limits = np.asarray(robot.velocity_limits, dtype=float)
-        # Scaled once here, so the per-step test is one comparison (see exceeds_speed_limits).
         self._speed_limits: FloatArray | None = (
-            limits * (1.0 + SPEED_LIMIT_RTOL) if np.isfinite(limits).any() else None
+            speed_limit_thresholds(limits) if np.isfinite(limits).any() else None
         )
 
     def reset(self) -> None:  # noqa: B027 - optional hook
@@ -102,7 +101,7 @@ class Backend(abc.ABC):
         For backends that do not enforce joint limits (see :mod:`otmm_qp.status`).
         """
         limits = getattr(self, "_speed_limits", None)  # None: unbound, or no finite limit
-        if limits is not None and bool((np.abs(qdot) > limits).any()):  # limits carry the rtol
+        if limits is not None and exceeds_speed_limits(qdot, limits):
             return BackendOutput(qdot, Status.SATURATED, damping)
         return BackendOutput(qdot, Status.OK, damping)
 

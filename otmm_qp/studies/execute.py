@@ -159,11 +159,7 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
         finally:
             client.close()
         return
-    # The workers' statistical profiler samples every thread's stack each 10 ms (and the GIL
-    # monitor each 1 ms) in the worker process: with the GIL held by an episode, that cost
-    # ~1/3 more episode compute per worker. The embedded cluster needs neither; the Nanny
-    # hands this config to the worker processes it spawns.
-    with dask.config.set(QUIET_WORKERS):
+    with dask.config.set(QUIET_WORKERS):  # the Nanny hands it to the workers it spawns
         cluster = LocalCluster(
             n_workers=workers or os.cpu_count() or 1,
             threads_per_worker=1,

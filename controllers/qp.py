@@ -14,7 +14,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.qp_barrier import BarrierRow, SingularityBarrier
 from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend
-from otmm_qp_controllers.qp_problem import BIG, QpProblem, build_qp, per_joint
+from otmm_qp_controllers.qp_problem import BIG, QpProblem, build_qp, clip_into_box, per_joint
 from otmm_qp_controllers.qp_solvers import QpSession, available_solvers, make_session
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
@@ -111,9 +111,12 @@ class QpBackend(BoxQpBackend):
     def bind(self, robot: Robot, dt: float) -> None:
         """Read the limits; allocate the QP data written in place each step."""
         self.q_nominal = per_joint(self.q_nominal_param, "q_nominal", robot.nv)
-        self._data = QpProblem.allocate(robot.nv)
-        self._barrier_data = QpProblem.allocate(robot.nv, 1)
         super().bind(robot, dt)
+        # With finite speed limits every non-empty box lies within ±BIG: the box is then
+        # written straight into the problem's lb/ub (no copy, no clipping per step).
+        self._box_in_problem = bool(np.all(self.limits.speed <= BIG))
+        self._data = QpProblem.allocate(robot.nv, box=self.bounds if self._box_in_problem else None)
+        self._barrier_data = QpProblem.allocate(robot.nv, 1)
 
     def reset(self) -> None:
         """Forget warm starts, the step counter and a defaulted nominal posture."""
@@ -195,8 +198,9 @@ class QpBackend(BoxQpBackend):
             status = self.inside_status(candidate, 1e-9)  # None outside the box or for NaN
             if status is not None:
                 return candidate, status
+        bounds = None if self._box_in_problem else self.bounds  # None: already in _data
         data = build_qp(
-            state.task_jacobian, xdot, self.damping, self.bounds, self.posture_weight, posture,
+            state.task_jacobian, xdot, self.damping, bounds, self.posture_weight, posture,
             out=self._data,
         )  # fmt: skip
         return self._solve(step, self.session, data, state, xdot, posture)
@@ -214,13 +218,13 @@ class QpBackend(BoxQpBackend):
         self.used_qp = True
         session.load(data)
         solution = session.solve()
-        if solution.x is None or not np.isfinite(solution.x).all():
+        settled = None if solution.x is None else clip_into_box(solution.x, self.bounds, SOLVER_TOL)
+        if settled is None:  # no solution, or a non-finite one
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"
             preferred = self.unconstrained(state, xdot, posture)
             return self.fallback(step, detail, data.copy(), solution, preferred)
-        qdot = solution.x  # a fresh array: clipped into the box in place
-        np.minimum(np.maximum(qdot, self.bounds[0], out=qdot), self.bounds[1], out=qdot)
-        return qdot, self.classify(qdot, SOLVER_TOL)
+        qdot, active = settled
+        return qdot, Status.BOUNDED if active else Status.OK
 
     def _enforce_barrier(
         self, step: int, state: KinematicState, qdot: FloatArray, status: Status

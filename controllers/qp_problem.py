@@ -40,6 +40,7 @@ __all__ = [
     "active_bound",
     "build_qp",
     "check_limit_parameters",
+    "clip_into_box",
     "per_joint",
     "velocity_bounds",
     "velocity_box",
@@ -282,11 +283,50 @@ def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | Non
     return active
 
 
+def clip_into_box(x: FloatArray, bounds: FloatArray, tol: float) -> tuple[FloatArray, bool] | None:
+    r"""A solver's answer clipped into the box, and whether a bound is then active.
+
+    .. math:: \dot q = \min(\max(x, lb), ub),\qquad
+              \text{active} = \text{active\_bound}(\dot q, [lb; ub], \tau)
+
+    for a non-empty box (``lb ≤ ub``); clipping removes the solver's tolerance, so a returned
+    ``q̇`` never violates a bound.
+
+    Args:
+        x: The solver's primal solution [rad/s], shape ``(nv,)``.
+        bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``, ``lb ≤ ub``.
+        tol: Relative tolerance τ [-] of :func:`active_bound`.
+
+    Returns:
+        ``(q̇ (nv,) a new array, active)``, or None when some ``x_i`` is NaN or ±inf.
+    """
+    # One scalar pass instead of isfinite/all, maximum/minimum and active_bound's pass (the
+    # every-step QP path runs this on each step; see active_bound for why scalar).
+    values = x.tolist()
+    if not math.isfinite(sum(values)):  # NaN or ±inf somewhere (or entries beyond 1e308)
+        return None
+    active = False
+    lower, upper = bounds.tolist()
+    for i, (value, low, high) in enumerate(zip(values, lower, upper, strict=True)):
+        if value <= low:
+            values[i] = low
+            active = active or low != -math.inf
+        elif value >= high:
+            values[i] = high
+            active = active or high != math.inf
+        elif not active and (
+            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
+        ):
+            active = True
+    return np.array(values), active
+
+
 def build_qp(
     task_jacobian: FloatArray,
     xdot: FloatArray,
     damping: float,
-    bounds: FloatArray,
+    bounds: FloatArray | None,
     posture_weight: float = 0.0,
     posture_velocity: FloatArray | None = None,
     out: QpProblem | None = None,
@@ -305,22 +345,32 @@ def build_qp(
         task_jacobian: ``J_w``, shape ``(n, nv)``.
         xdot: ``ẋ_w``, shape ``(n,)``.
         damping: ``μ = λ² > 0`` [task units² per (rad/s)²].
-        bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
+        bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``; None when ``out.lb``, ``out.ub``
+            already hold the box within ``±BIG`` (a backend whose box is written into the
+            problem, :meth:`QpProblem.allocate` with ``box=``).
         posture_weight: ``w_p ≥ 0``.
         posture_velocity: ``q̇_p = g_p(θ_nominal − θ)`` [rad/s], shape ``(nv,)``.
         out: Problem whose ``P``, ``q``, ``lb``, ``ub`` are overwritten; a new box-only
             problem when None.
+
+    Raises:
+        ParameterError: ``bounds`` is None without ``out``.
     """
     nv = task_jacobian.shape[1]
-    problem = QpProblem.allocate(nv) if out is None else out
-    hessian, linear = problem.P, problem.q
-    np.matmul(task_jacobian.T, task_jacobian, out=hessian)
+    if out is None:
+        if bounds is None:
+            raise ParameterError("bounds", "None needs out= holding the box")
+        out = QpProblem.allocate(nv)
+    hessian, linear = out.P, out.q
+    # np.dot rather than matmul: a third of the call overhead on arm-sized matrices.
+    np.dot(task_jacobian.T, task_jacobian, out=hessian)
     diagonal = hessian.reshape(-1)[:: nv + 1]  # a view on the diagonal
     np.add(diagonal, damping + posture_weight, out=diagonal)
-    np.matmul(task_jacobian.T, xdot, out=linear)
+    np.dot(xdot, task_jacobian, out=linear)
     np.negative(linear, out=linear)
     if posture_weight > 0.0 and posture_velocity is not None:
         linear -= posture_weight * posture_velocity
-    np.minimum(np.maximum(bounds[0], -BIG, out=problem.lb), BIG, out=problem.lb)
-    np.minimum(np.maximum(bounds[1], -BIG, out=problem.ub), BIG, out=problem.ub)
-    return problem
+    if bounds is not None:
+        np.minimum(np.maximum(bounds[0], -BIG, out=out.lb), BIG, out=out.lb)
+        np.minimum(np.maximum(bounds[1], -BIG, out=out.ub), BIG, out=out.ub)
+    return out

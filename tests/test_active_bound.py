@@ -1,4 +1,4 @@
-"""``active_bound``: the scalar loop equals the array formulation; infinite bounds never active."""
+"""``active_bound``, ``clip_into_box``: scalar loops equal the array forms; inf never active."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.qp import QpBackend
-from otmm_qp_controllers.qp_problem import active_bound
+from otmm_qp_controllers.qp_problem import active_bound, clip_into_box
 
 TOL = 1e-9
 finite = st.floats(-5.0, 5.0, allow_nan=False)
@@ -50,3 +50,57 @@ def test_qp_on_an_arm_without_limits_reports_ok() -> None:
     backend.bind(arm, 0.01)
     state = KinematicState.compute(arm, np.array([0.3, 0.5]))
     assert backend.solve(state, np.array([0.1, 0.0]), np.zeros(2)).status == Status.OK
+
+
+def clip_reference(x: np.ndarray, bounds: np.ndarray, tol: float) -> tuple[np.ndarray, bool] | None:
+    """The array form of clip_into_box: reject non-finite, clip, then active_bound's test."""
+    if not np.isfinite(x).all():
+        return None
+    clipped = np.minimum(np.maximum(x, bounds[0]), bounds[1])
+    active = reference(clipped, bounds, tol)
+    assert active is not None  # clipped into a non-empty box: inside
+    return clipped, active
+
+
+solver_value = st.one_of(
+    st.floats(-8.0, 8.0, allow_nan=False), st.just(np.inf), st.just(-np.inf), st.just(np.nan)
+)
+
+
+lower_bound = st.one_of(finite, st.just(-np.inf))
+upper_bound = st.one_of(finite, st.just(np.inf))
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.lists(
+        st.tuples(solver_value, lower_bound, upper_bound, st.booleans()), min_size=1, max_size=9
+    )
+)
+def test_clip_into_box_equals_array_form(rows: list[tuple[float, float, float, bool]]) -> None:
+    """One scalar pass = isfinite + clip + active_bound on the clipped q̇ (bit for bit).
+
+    Boxes are non-empty with ``lb < +inf`` and ``ub > −inf``, as every velocity box is.
+    """
+    x = np.array([r[0] for r in rows])
+    lower = np.array([min(r[1], r[2]) for r in rows])
+    upper = np.array([max(r[1], r[2]) for r in rows])
+    snap = np.array([r[3] for r in rows]) & np.isfinite(upper)
+    x[snap] = upper[snap] + 1e-12 * (1.0 + np.abs(upper[snap]))  # within the solver tolerance
+    bounds = np.array([lower, upper])
+    got, expected = clip_into_box(x, bounds, TOL), clip_reference(x, bounds, TOL)
+    if expected is None:
+        assert got is None
+        return
+    assert got is not None
+    np.testing.assert_array_equal(got[0], expected[0])
+    assert got[1] == expected[1]
+    assert got[0] is not x  # a new array: the caller may keep it
+
+
+def test_clip_into_box_rejects_nan_and_inf() -> None:
+    bounds = np.array([[-1.0, -1.0], [1.0, 1.0]])
+    assert clip_into_box(np.array([np.nan, 0.0]), bounds, TOL) is None
+    assert clip_into_box(np.array([0.0, np.inf]), bounds, TOL) is None
+    clipped = clip_into_box(np.array([1.0 + 1e-12, 0.0]), bounds, TOL)
+    assert clipped is not None and clipped[0][0] == 1.0 and clipped[1]

@@ -24,11 +24,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.filters.otmm import OtmmFilter
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 from otmm_qp_controllers.pinv import PseudoInverseBackend
 from otmm_qp_controllers.qp import QpBackend
 from otmm_qp_controllers.qp_problem import (
@@ -146,6 +148,44 @@ def test_build_qp_in_place_equals_fresh(name: str, posture: float) -> None:
         for got, expected in zip(reused, fresh, strict=True):
             np.testing.assert_array_equal(got, expected)
         assert fresh.ub[0] == BIG
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_build_qp_into_shared_box_equals_copied_box(name: str) -> None:
+    """A box written into the problem's own lb/ub (bounds=None) gives the same QP, bit for bit."""
+    robot = ROBOTS[name]
+    rng = np.random.default_rng(8)
+    box = np.empty((2, robot.nv))
+    shared = QpProblem.allocate(robot.nv, box=box)
+    assert np.shares_memory(shared.lb, box) and np.shares_memory(shared.ub, box)
+    for state, xdot in cases(robot, 10, seed=8):
+        box[:] = np.sort(rng.standard_normal((2, robot.nv)), axis=0)
+        copied = build_qp(state.task_jacobian, xdot, 1e-3, box.copy())
+        build_qp(state.task_jacobian, xdot, 1e-3, None, out=shared)
+        for got, expected in zip(shared, copied, strict=True):
+            np.testing.assert_array_equal(got, expected)
+
+
+def test_build_qp_without_bounds_needs_out() -> None:
+    with pytest.raises(ParameterError, match="bounds"):
+        build_qp(np.eye(2), np.zeros(2), 1e-3, None)
+    with pytest.raises(DimensionError, match="box"):
+        QpProblem.allocate(3, box=np.empty((2, 2)))
+
+
+@pytest.mark.parametrize("fast_path", [True, False])
+def test_unlimited_arm_qp_equals_dls(fast_path: bool) -> None:
+    """Infinite speed and position limits (box not shared with the problem, ±inf → ±BIG)."""
+    arm = PlanarArm([1.0, 0.8, 0.6])
+    backend = QpBackend(solver="daqp", fast_path=fast_path)
+    backend.bind(arm, DT)
+    for state, xdot in cases(arm, 10, seed=9):
+        out = backend.solve(state, xdot, np.zeros(arm.nv))
+        J = state.task_jacobian
+        dls = J.T @ np.linalg.solve(J @ J.T + backend.damping * np.eye(arm.task_dim), xdot)
+        np.testing.assert_allclose(out.qdot, dls, rtol=0.0, atol=1e-8 * (1 + abs(dls).max()))
+        assert backend.used_qp is not fast_path
+        assert out.status == Status.OK
 
 
 @pytest.mark.parametrize("name", sorted(ROBOTS))

@@ -51,4 +51,5 @@ class DaqpSession(QpSession):
         x, _, exitflag, _ = self._model.solve()
         if exitflag <= 0:
             return Solution(None, False, f"exitflag {exitflag}")
-        return Solution(np.array(x, dtype=float), True, f"exitflag {exitflag}")
+        # DAQP returns a new float64 array per solve: no copy needed.
+        return Solution(np.asarray(x, dtype=float), True, f"exitflag {exitflag}")

@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 import qpsolvers
 
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.robots.robot import FloatArray
 
 #: Infinite bounds are passed to the solvers as ±BIG (some reject inf).
@@ -41,10 +42,25 @@ class QpProblem(NamedTuple):
     u: FloatArray
 
     @classmethod
-    def allocate(cls, n: int, m: int = 0) -> QpProblem:
-        """Uninitialised arrays for ``n`` variables and ``m`` general rows."""
+    def allocate(cls, n: int, m: int = 0, box: FloatArray | None = None) -> QpProblem:
+        """Uninitialised arrays for ``n`` variables and ``m`` general rows.
+
+        Args:
+            n: Number of variables.
+            m: Number of general rows.
+            box: An array of shape ``(2, n)`` whose rows become ``lb`` and ``ub`` (views: a
+                caller that writes its box there hands it to the solver without a copy);
+                fresh arrays when None.
+
+        Raises:
+            DimensionError: ``box`` is not of shape ``(2, n)``.
+        """
+        if box is None:
+            box = np.empty((2, n))
+        elif box.shape != (2, n):
+            raise DimensionError("box", (2, n), box.shape)
         return cls(
-            np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n),
+            np.empty((n, n)), np.empty(n), box[0], box[1],
             np.zeros((m, n)), np.full(m, -BIG), np.full(m, BIG),
         )  # fmt: skip
 

@@ -36,6 +36,7 @@ class QpSession(abc.ABC):
 
     def __init__(self) -> None:
         self._structure: tuple[int, int, bytes] | None = None
+        self._loaded: QpProblem | None = None
 
     @abc.abstractmethod
     def setup(self, problem: QpProblem) -> None:
@@ -51,13 +52,20 @@ class QpSession(abc.ABC):
 
     def load(self, problem: QpProblem) -> None:
         """:meth:`update` if ``problem`` has the last load's structure, else :meth:`setup`."""
+        # The same box-only problem object (a backend's reused buffers) cannot change
+        # structure: skip recomputing it.
+        if not problem.C.shape[0] and problem is self._loaded:
+            self.update(problem)
+            return
         structure = problem.structure
         if structure == self._structure:
             self.update(problem)
-            return
-        self.setup(problem)
-        self._structure = structure
+        else:
+            self.setup(problem)
+            self._structure = structure
+        self._loaded = problem
 
     def reset(self) -> None:
         """Forget the warm start: the next :meth:`load` sets the solver up again."""
         self._structure = None
+        self._loaded = None

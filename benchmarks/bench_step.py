@@ -13,19 +13,15 @@ prefer_single_threaded_blas()  # before NumPy loads: one BLAS thread, as the CLI
 
 import argparse  # noqa: E402
 from collections.abc import Sequence  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 from otmm_qp.bench import run_bench  # noqa: E402
-from otmm_qp.bench.run import ROUNDS  # noqa: E402
+from otmm_qp.commands.bench import add_arguments  # noqa: E402
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Parse the arguments and run the benchmark."""
+    """Parse the arguments (those of ``otmm-qp bench``) and run the benchmark."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("results/bench"))
-    parser.add_argument("--steps", type=int, default=300, help="replayed states per scenario")
-    parser.add_argument("--rounds", type=int, default=ROUNDS, help="interleaved timing rounds")
-    parser.add_argument("--planar-only", action="store_true", help="skip the Panda scenario")
+    add_arguments(parser)
     args = parser.parse_args(argv)
     return run_bench(args.out, args.steps, args.rounds, args.planar_only)
 

@@ -157,9 +157,8 @@ class QpBackend(BoxQpBackend):
         c = Vt @ b
         return np.asarray(Vt.T @ (c / (sigma * sigma + mu)) + (b - Vt.T @ c) / mu)
 
-    def _posture(self, theta: FloatArray) -> FloatArray | None:
-        if self.posture_weight <= 0.0:
-            return None
+    def _posture(self, theta: FloatArray) -> FloatArray:
+        """``q̇_p = g_p(θ_nom − θ)`` [rad/s], shape ``(nv,)`` (``θ_nom``: the first θ if unset)."""
         if self._posture_reference is None:
             self._posture_reference = np.array(theta, dtype=float)
         return self.posture_gain * (self._posture_reference - theta)
@@ -169,7 +168,7 @@ class QpBackend(BoxQpBackend):
     ) -> BackendOutput:
         """Joint velocity [rad/s], shape ``(nv,)``, within the joint-velocity box."""
         step, theta, empty = self.begin_step(state, qdot_prev)
-        posture = self._posture(theta)
+        posture = None if self.posture_weight <= 0.0 else self._posture(theta)
         self._last = (state.task_jacobian, xdot, posture)
         self.used_qp = False
         self.barrier_row = None

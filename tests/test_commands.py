@@ -76,6 +76,20 @@ def test_bench_rejects_too_few_steps(capsys: pytest.CaptureFixture[str], tmp_pat
     assert "steps: must be >= 10, got 3" in capsys.readouterr().err
 
 
+def test_bench_cli_accepts_the_command_it_records(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--rounds and --planar-only: bench.json records a command the CLI runs as given."""
+    out = tmp_path / "bench"
+    args = ["bench", "--out", str(out), "--steps", "10", "--rounds", "2", "--planar-only"]
+    assert main(args) == 0
+    result = _check_bench_output(out, 1)
+    assert result["rounds"] == 2
+    assert result["command"] == "otmm-qp " + " ".join(args)
+    assert main(["bench", "--out", str(out), "--steps", "10", "--rounds", "0"]) == 2
+    assert "rounds: must be >= 1, got 0" in capsys.readouterr().err
+
+
 def test_bench_step_script(tmp_path: Path) -> None:
     script = runpy.run_path(str(ROOT / "benchmarks" / "bench_step.py"))
     out = tmp_path / "bench"

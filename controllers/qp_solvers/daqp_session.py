@@ -11,6 +11,8 @@ from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
 
 #: DAQP sense flags of an equality row: ACTIVE (1) + IMMUTABLE (4).
 _EQUALITY = 5
+#: The details of DAQP's success flags (1: optimal, 2: soft optimal), built once.
+_DETAILS = {flag: f"exitflag {flag}" for flag in (1, 2)}
 
 
 class DaqpSession(QpSession):
@@ -49,7 +51,8 @@ class DaqpSession(QpSession):
     def solve(self) -> Solution:
         """Solve; found when DAQP's exit flag is positive."""
         x, _, exitflag, _ = self._model.solve()
+        detail = _DETAILS.get(exitflag) or f"exitflag {exitflag}"
         if exitflag <= 0:
-            return Solution(None, False, f"exitflag {exitflag}")
+            return Solution(None, False, detail)
         # DAQP returns a new float64 array per solve: no copy needed.
-        return Solution(np.asarray(x, dtype=float), True, f"exitflag {exitflag}")
+        return Solution(np.asarray(x, dtype=float), True, detail)

@@ -14,6 +14,7 @@ from otmm_qp.bench.scenarios import Scenario, panda_scenario, planar_scenario
 from otmm_qp.bench.tables import STEP_DEFINITION, markdown
 from otmm_qp.bench.timing import check_targets, load_average, machine, summarise, time_pipelines
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.output.paths import atomic_write_text
 
 ROUNDS = 5
 #: Fewest replayed states accepted (the percentiles need a few samples per round).
@@ -75,8 +76,8 @@ def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = F
         "scenarios": scenarios,
     }
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.json").write_text(json.dumps(result, indent=2) + "\n")
+    atomic_write_text(out / "bench.json", json.dumps(result, indent=2) + "\n")
     table = markdown(result)
-    (out / "bench.md").write_text(table + "\n")
+    atomic_write_text(out / "bench.md", table + "\n")
     print(table)
     return 0

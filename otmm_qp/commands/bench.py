@@ -10,13 +10,24 @@ HELP = "time one control step of each pipeline"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--out`` folder and ``--steps`` per pipeline."""
+    """``--out``, ``--steps``, ``--rounds`` and ``--planar-only``.
+
+    ``benchmarks/bench_step.py`` uses the same options, so both accept the command line that
+    ``bench.json`` records.
+    """
+    from otmm_qp.bench.run import ROUNDS
+
     parser.add_argument("--out", type=Path, default=Path("results/bench"))
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=300, help="replayed states per scenario")
+    parser.add_argument(
+        "--rounds", type=int, default=ROUNDS,
+        help=f"interleaved timing rounds (default {ROUNDS}; more rounds, steadier medians)",
+    )  # fmt: skip
+    parser.add_argument("--planar-only", action="store_true", help="skip the Panda scenario")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark."""
     from otmm_qp.bench import run_bench
 
-    return run_bench(args.out, args.steps)
+    return run_bench(args.out, args.steps, args.rounds, args.planar_only)

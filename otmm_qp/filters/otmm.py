@@ -79,7 +79,7 @@ class OtmmFilter(TaskFilter):
     def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:
         """Apply eq. (8) to the weighted command ``xdot``, shape ``(n,)``."""
         sigma = state.sigma
-        n = state.task_dim
+        n = state.U.shape[0]  # the task dimension (U is (n, k))
         if sigma.size == n:
             sigma_min = float(sigma[-1])
             if sigma_min > self.sigma_s:

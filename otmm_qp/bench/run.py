@@ -12,7 +12,14 @@ from qpsolvers.warnings import SparseConversionWarning
 from otmm_qp.bench.pipelines import build_steps
 from otmm_qp.bench.scenarios import Scenario, panda_scenario, planar_scenario
 from otmm_qp.bench.tables import STEP_DEFINITION, markdown
-from otmm_qp.bench.timing import check_targets, load_average, machine, summarise, time_pipelines
+from otmm_qp.bench.timing import (
+    BLOCK,
+    check_targets,
+    load_average,
+    machine,
+    summarise,
+    time_pipelines,
+)
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.output.paths import atomic_write_text
 
@@ -70,6 +77,7 @@ def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = F
         "command": command + (" --planar-only" if planar_only else ""),
         "step_definition": STEP_DEFINITION,
         "rounds": rounds,
+        "block": BLOCK,
         "steps": steps,
         "machine": info,
         "load_average_end": load_average(),

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from otmm_qp.bench.timing import BLOCK
+
 STEP_DEFINITION = (
     "otmm-qp: KinematicState.compute (kinematics + Jacobian + SVD) + Controller.step; "
     "pink / mink / Drake: the registered adapter's public solve(state, ẋ, q̇_prev) "
@@ -54,7 +56,8 @@ def markdown(result: dict[str, Any]) -> str:
         f"Python {info['python']}  ",
         f"Libraries: {versions}  ",
         f"One step: {result['step_definition']}  ",
-        f"Samples: {result['rounds']} interleaved rounds × the state sequence per pipeline.",
+        f"Samples: {result['rounds']} rounds × the state sequence per pipeline, interleaved in "
+        f"blocks of {result.get('block', BLOCK)} consecutive states.",
         "",
     ]
     for scenario in result["scenarios"]:

@@ -110,7 +110,7 @@ class Controller:
         result = self.backend.solve(state, weighted, qdot_prev)
         qdot = result.qdot
         # One dot product: NaN/inf (or |q̇| beyond 1e154) make it non-finite.
-        speed_squared = float(np.dot(qdot, qdot))  # np.dot: less call overhead than @
+        speed_squared = float(qdot.dot(qdot))  # ndarray.dot: the least call overhead
         if not math.isfinite(speed_squared):
             qdot = np.zeros_like(qdot_prev)
             result = result._replace(qdot=qdot, status=STATUS_NONFINITE)

@@ -96,7 +96,7 @@ class OtmmFilter(TaskFilter):
         if k == 1:  # the paper's case, with scalars only
             u_s = U[:, n - 1]
             p = self.p(sigma_min)
-            removed_along = p * float(np.dot(u_s, xdot))  # p (u_sᵀẋ)
+            removed_along = p * float(u_s.dot(xdot))  # p (u_sᵀẋ)
             modified = xdot - removed_along * u_s
             return FilterOutput(modified, FilterReport(True, sigma_min, p, abs(removed_along)))
         basis = U[:, n - k :]  # (n, k) the u_i filtered

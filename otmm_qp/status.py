@@ -9,9 +9,11 @@ The values, in the order a step is classified (the first that applies wins):
   ``dls``, or the QP's singularity-barrier slack) returned a solution of a *relaxed* problem:
   the bounds or the barrier it had to give up are honoured as closely as their priority allows.
 * ``diverging``: the joint speed is beyond any arm's reach,
-  :math:`\|\dot q\|_\infty > \dot q_{div}` (:data:`DIVERGENCE_SPEED`, 100 rad/s by default, also
-  the default threshold of the ``blow_up`` metric) — reported for every backend, with or
-  without speed limits (a pseudoinverse spinning at 10³ rad/s on a limitless arm is not ``ok``).
+  :math:`\|\dot q\|_\infty > \dot q_{div}` — reported for every backend, with or without
+  speed limits (a pseudoinverse spinning at 10³ rad/s on a limitless arm is not ``ok``).
+  ``q̇_div`` is the experiment's (or study's) ``metrics.blow_up_speed``, so the status and the
+  ``blow_up`` metric agree; :data:`DIVERGENCE_SPEED` (100 rad/s, the metric's default) for a
+  :class:`~otmm_qp.controller.Controller` built without a config.
 * ``saturated``: an unconstrained backend returned a joint speed above the robot's limit,
   :math:`\exists i:\ |\dot q_i| > \dot q_{max,i}(1 + 10^{-9})` — the arm cannot execute the
   command as given (its drives would clip it). Never reported when the limits are infinite.

@@ -175,3 +175,35 @@ def test_unconstrained_output_is_exceeds_speed_limits() -> None:
     for qdot in samples:
         saturated = backend.unconstrained_output(qdot).status == Status.SATURATED
         assert saturated == exceeds_speed_limits(qdot, thresholds)
+
+
+def test_config_blow_up_speed_is_the_diverging_threshold() -> None:
+    """A config's metrics.blow_up_speed sets every controller's diverging threshold."""
+    import yaml
+
+    from otmm_qp.config.load import parse_config
+    from otmm_qp.metrics import MetricSettings
+    from otmm_qp.runner import prepare_experiment, run_experiment
+
+    text = """
+name: tiny
+dt: 0.02
+loop_modes: [feedforward]
+metrics: {blow_up_speed: 1.5}
+experiments:
+  - name: A
+    robot: {type: planar, link_lengths: [1.0, 0.8]}
+    q0: [0.927, -2.5]
+    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 2.0}
+    duration: 0.4
+    controllers:
+      - {name: RMRC, backend: {type: pinv}}
+"""
+    suite = parse_config(yaml.safe_load(text))
+    prepared = prepare_experiment(suite, 0)
+    assert [c.divergence_speed for c in prepared.controllers] == [1.5]
+    run = run_experiment(prepared, MetricSettings(blow_up_speed=1.5))[0]
+    speed = np.abs(run.result.qdot).max(axis=1)
+    assert speed.max() > 1.5  # the circle needs more than 1.5 rad/s somewhere
+    np.testing.assert_array_equal(run.result.status == Status.DIVERGING, speed > 1.5)
+    assert run.metrics["blow_up"]

@@ -28,6 +28,7 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.simulation.simulate import task_position
 from otmm_qp.state import KinematicState
+from otmm_qp.status import DIVERGENCE_SPEED
 from otmm_qp.trajectories.trajectory import Trajectory
 
 #: Trajectory samples checked against the workspace before running.
@@ -92,8 +93,13 @@ class PreparedExperiment:
     skipped: list[SkippedController] = field(default_factory=list)
 
 
-def build_controller(config: ControllerConfig, field: str) -> Controller:
+def build_controller(
+    config: ControllerConfig, field: str, divergence_speed: float = DIVERGENCE_SPEED
+) -> Controller:
     """Instantiate the filters and backend of a controller record.
+
+    ``divergence_speed`` [rad/s] is the experiment's ``metrics.blow_up_speed``, so a step is
+    reported ``diverging`` exactly where the ``blow_up`` metric counts it.
 
     Raises:
         ConfigError: Unknown plugin name or parameter, or a value out of range.
@@ -109,7 +115,7 @@ def build_controller(config: ControllerConfig, field: str) -> Controller:
         registry.BACKENDS, config.backend.type, config.backend.params, f"{field}.backend"
     )
     backend.name = config.backend.type
-    return Controller(config.name, filters, backend)
+    return Controller(config.name, filters, backend, divergence_speed)
 
 
 def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field: str) -> None:
@@ -285,7 +291,7 @@ def prepare_experiment(
     check_step_count(duration / dt, max_steps, values, duration_field)
     check_robot(robot, q0, field)
     check_reachable(robot, trajectory, duration, f"{field}.trajectory")
-    controllers, skipped = _build_controllers(config, field)
+    controllers, skipped = _build_controllers(config, field, suite.metrics.blow_up_speed)
     check_controllers(
         controllers, robot, KinematicState.compute(robot, q0, weight), trajectory, field
     )
@@ -340,14 +346,14 @@ def _build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> T
 
 
 def _build_controllers(
-    config: ExperimentConfig, field: str
+    config: ExperimentConfig, field: str, divergence_speed: float
 ) -> tuple[list[Controller], list[SkippedController]]:
     """Build every controller; one whose peer library is missing is skipped, not fatal."""
     controllers: list[Controller] = []
     skipped: list[SkippedController] = []
     for j, spec in enumerate(config.controllers):
         try:
-            controllers.append(build_controller(spec, f"{field}.controllers.{j}"))
+            controllers.append(build_controller(spec, f"{field}.controllers.{j}", divergence_speed))
         except PeerUnavailable as error:
             filters = "+".join(f.type for f in spec.filters) or "none"
             skipped.append(SkippedController(spec.name, filters, spec.backend.type, str(error)))

@@ -208,7 +208,9 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         duration = _episode_duration(config, task)
         row["duration"] = duration
         try:
-            built = build_controller(controllers[controller], f"controllers.{controller}")
+            built = build_controller(
+                controllers[controller], f"controllers.{controller}", settings.blow_up_speed
+            )
             q0 = robot.check_start(task.q0)
             run = simulate(
                 robot,

@@ -64,7 +64,13 @@ class Controller:
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
-        self.divergence_speed = speed
+        self._divergence_speed = speed
+        self._divergence_squared = speed * speed  # inf stays inf: the check is then off
+
+    @property
+    def divergence_speed(self) -> float:
+        """Joint speed [rad/s] above which a solved step is reported ``diverging``."""
+        return self._divergence_speed
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Prepare for a run on ``robot`` with period ``dt`` [s]."""
@@ -114,8 +120,8 @@ class Controller:
         if not math.isfinite(speed_squared):
             qdot = np.zeros_like(qdot_prev)
             result = result._replace(qdot=qdot, status=STATUS_NONFINITE)
-        else:
-            status = classify_divergence(result.status, speed_squared, qdot, self.divergence_speed)
+        elif speed_squared > self._divergence_squared:  # ‖q̇‖∞ ≤ ‖q̇‖₂: else not diverging
+            status = classify_divergence(result.status, speed_squared, qdot, self._divergence_speed)
             if status is not result.status:
                 result = result._replace(status=status)
         filtered = weighted if unit else weighted / state.weight

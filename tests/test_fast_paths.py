@@ -41,7 +41,8 @@ from otmm_qp_controllers.qp_problem import (
     velocity_bounds,
     velocity_box,
 )
-from otmm_qp_controllers.qp_solvers import SESSIONS, solve_with_qpsolvers
+from otmm_qp_controllers.qp_solvers import SESSIONS, make_session, solve_with_qpsolvers
+from otmm_qp_controllers.qp_solvers.session import conflicting_bounds
 
 DT = 0.01  # [s]
 PANDA = PinocchioArm(name="panda", task="pose")
@@ -280,3 +281,52 @@ def test_vectorised_otmm_equals_loop(name: str, corank: int | str, p: str) -> No
         )
         active += got.report.active
     assert active > 0
+
+
+def _box_problem(lower: float, upper: float, hessian: float = 1.0) -> QpProblem:
+    problem = QpProblem.allocate(3)
+    problem.P[:] = hessian * np.eye(3)
+    problem.q[:] = 1.0
+    problem.lb[:], problem.ub[:] = lower, upper
+    return problem
+
+
+@pytest.mark.parametrize("solver", [*SESSIONS, "quadprog"])
+@pytest.mark.parametrize("first", [True, False])
+def test_session_refuses_an_empty_box_then_recovers(solver: str, first: bool) -> None:
+    """lb > ub: not found with a reason (never the previous or a garbage x); then solves again.
+
+    DAQP and OSQP used to report the previous solution as optimal after such an update (their
+    Python update drops the C error code), and DAQP raised on a refused set-up.
+    """
+    session = make_session(solver)
+    good = _box_problem(-1.0, 1.0)  # optimum x = -1 (q = 1, P = I)
+    if not first:
+        session.load(good)
+        assert session.solve().found
+    session.load(_box_problem(2.0, 1.0))
+    refused = session.solve()
+    assert not refused.found and refused.x is None and refused.detail
+    session.load(good)
+    solution = session.solve()
+    assert solution.found and solution.x is not None
+    np.testing.assert_allclose(solution.x, -1.0, atol=1e-6)
+
+
+def test_daqp_session_refuses_a_hessian_it_cannot_factor() -> None:
+    session = make_session("daqp")
+    session.load(_box_problem(-1.0, 1.0))
+    assert session.solve().found
+    session.load(_box_problem(-1.0, 1.0, hessian=-1.0))
+    refused = session.solve()
+    assert not refused.found and "exitflag" in refused.detail
+
+
+def test_conflicting_bounds_names_the_first_clash() -> None:
+    problem = QpProblem.allocate(2, 1)
+    problem.lb[:], problem.ub[:] = -1.0, 1.0
+    assert conflicting_bounds(problem) is None
+    problem.l[0], problem.u[0] = 0.5, 0.2
+    assert conflicting_bounds(problem) == "infeasible: row 0 has lower bound 0.5 > upper 0.2"
+    problem.lb[1] = 3.0
+    assert conflicting_bounds(problem) == "infeasible: variable 1 has lower bound 3 > upper 1"

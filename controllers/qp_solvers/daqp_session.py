@@ -3,6 +3,7 @@ r"""DAQP (dual active-set) session: warm started from the previous active set.""
 from __future__ import annotations
 
 from ctypes import c_int
+from typing import Any
 
 import numpy as np
 
@@ -30,8 +31,12 @@ class DaqpSession(QpSession):
         sense = np.zeros(n + m, dtype=c_int)
         sense[n:][problem.l == problem.u] = _EQUALITY
         self._stack(problem)
-        self._model = daqp.Model()
-        self._model.setup(problem.P, problem.q, problem.C, self._upper, self._lower, sense)
+        model = daqp.Model()
+        flag, _ = model.setup(problem.P, problem.q, problem.C, self._upper, self._lower, sense)
+        # DAQP refuses data it cannot use (lb > ub, P not positive definite) with a negative
+        # flag; its solve() would then return a stale or NaN x flagged optimal, or raise.
+        self._model: Any = model if flag >= 0 else None
+        self._refused = None if flag >= 0 else f"set-up exitflag {flag}"
 
     def _stack(self, problem: QpProblem) -> None:
         n = problem.q.shape[0]
@@ -40,16 +45,24 @@ class DaqpSession(QpSession):
 
     def update(self, problem: QpProblem) -> None:
         """New ``P``, ``q``, bounds (and rows); the active set of the last solve is kept."""
-        if not problem.C.shape[0]:  # box only: the bounds are the problem's own arrays
-            self._model.update(H=problem.P, f=problem.q, bupper=problem.ub, blower=problem.lb)
+        if self._model is None:  # the last set-up was refused: set up again
+            self.setup(problem)
             return
-        self._stack(problem)
-        self._model.update(
-            H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
-        )
+        if not problem.C.shape[0]:  # box only: the bounds are the problem's own arrays
+            flag = self._model.update(
+                H=problem.P, f=problem.q, bupper=problem.ub, blower=problem.lb
+            )
+        else:
+            self._stack(problem)
+            flag = self._model.update(
+                H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
+            )
+        self._refused = None if flag >= 0 else f"update exitflag {flag}"
 
     def solve(self) -> Solution:
-        """Solve; found when DAQP's exit flag is positive."""
+        """Solve; found when DAQP's exit flag is positive (and it took the data)."""
+        if self._refused is not None:
+            return Solution(None, False, self._refused)
         x, _, exitflag, _ = self._model.solve()
         detail = _DETAILS.get(exitflag) or f"exitflag {exitflag}"
         if exitflag <= 0:

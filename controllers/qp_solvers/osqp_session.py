@@ -6,7 +6,7 @@ import numpy as np
 
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp_controllers.qp_solvers.problem import QpProblem
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+from otmm_qp_controllers.qp_solvers.session import QpSession, Solution, conflicting_bounds
 
 #: OSQP settings giving ~1e-10 accuracy (the error on x is about eps / λ_min(P)).
 SETTINGS = {
@@ -54,7 +54,14 @@ class OsqpSession(QpSession):
         return self._a_values.reshape(-1)
 
     def update(self, problem: QpProblem) -> None:
-        """New values on the fixed patterns."""
+        """New values on the fixed patterns (refused, not loaded, if a lower bound > upper).
+
+        OSQP's Python ``update`` drops the C layer's error code: given ``l > u`` it prints an
+        error and keeps the previous data, whose solution it then reports ``solved``.
+        """
+        self._refused = conflicting_bounds(problem)
+        if self._refused is not None:
+            return
         n = problem.q.shape[0]
         self._lower[:n], self._lower[n:] = problem.lb, problem.l
         self._upper[:n], self._upper[n:] = problem.ub, problem.u
@@ -67,6 +74,8 @@ class OsqpSession(QpSession):
 
     def solve(self) -> Solution:
         """Solve; found when OSQP reports solved (or solved inaccurate)."""
+        if self._refused is not None:
+            return Solution(None, False, self._refused)
         result = self._solver.solve(raise_error=False)
         status = int(result.info.status_val)
         if status not in _SOLVED:

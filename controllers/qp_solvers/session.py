@@ -23,12 +23,34 @@ class Solution(NamedTuple):
     detail: str
 
 
+def conflicting_bounds(problem: QpProblem) -> str | None:
+    """One line naming the first variable or row whose lower bound exceeds its upper bound.
+
+    Returns:
+        None when every ``lb_i ≤ ub_i`` and ``l_j ≤ u_j`` (the problem may be feasible).
+    """
+    for label, lower, upper in (
+        ("variable", problem.lb, problem.ub),
+        ("row", problem.l, problem.u),
+    ):
+        clash = (lower > upper).nonzero()[0]
+        if clash.size:
+            i = int(clash[0])
+            return f"infeasible: {label} {i} has lower bound {lower[i]:.6g} > upper {upper[i]:.6g}"
+    return None
+
+
 class QpSession(abc.ABC):
     """One solver instance kept across the steps of a run and warm started.
 
     :meth:`setup` allocates for a problem's :attr:`~QpProblem.structure` (sizes, equality
     rows); :meth:`update` writes new data of the same structure in place; :meth:`solve`
     solves the current data. :meth:`load` picks between the two.
+
+    Contract: ``P`` is positive definite (the caller's formulation guarantees it); data a
+    solver refuses (e.g. a lower bound above an upper one) makes the next :meth:`solve` return
+    a :class:`Solution` with ``found=False`` and the reason — never a stale or garbage ``x`` —
+    and a later valid :meth:`load` solves normally again.
     """
 
     #: Registered name.

@@ -330,3 +330,9 @@ def test_conflicting_bounds_names_the_first_clash() -> None:
     assert conflicting_bounds(problem) == "infeasible: row 0 has lower bound 0.5 > upper 0.2"
     problem.lb[1] = 3.0
     assert conflicting_bounds(problem) == "infeasible: variable 1 has lower bound 3 > upper 1"
+
+
+@pytest.mark.parametrize("solver", [*SESSIONS, "quadprog"])
+def test_session_solve_before_load_is_not_found(solver: str) -> None:
+    solution = make_session(solver).solve()
+    assert not solution.found and solution.x is None and solution.detail

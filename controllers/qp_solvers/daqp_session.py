@@ -20,6 +20,7 @@ class DaqpSession(QpSession):
     """``daqp.Model``: box rows first, then the general rows (DAQP's own layout)."""
 
     name = "daqp"
+    _model: Any = None  # the daqp.Model; None before set-up or after a refused one
 
     def setup(self, problem: QpProblem) -> None:
         """Allocate a ``daqp.Model`` and the stacked row bounds."""
@@ -35,7 +36,7 @@ class DaqpSession(QpSession):
         flag, _ = model.setup(problem.P, problem.q, problem.C, self._upper, self._lower, sense)
         # DAQP refuses data it cannot use (lb > ub, P not positive definite) with a negative
         # flag; its solve() would then return a stale or NaN x flagged optimal, or raise.
-        self._model: Any = model if flag >= 0 else None
+        self._model = model if flag >= 0 else None
         self._refused = None if flag >= 0 else f"set-up exitflag {flag}"
 
     def _stack(self, problem: QpProblem) -> None:

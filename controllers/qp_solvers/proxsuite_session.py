@@ -30,6 +30,7 @@ class ProxsuiteSession(QpSession):
         qp.init(problem.P, problem.q, None, None, *rows, problem.lb, problem.ub)
         self._qp = qp
         self._solved = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+        self._refused: str | None = None  # set up: solvable (ProxQP reports the rest)
 
     def update(self, problem: QpProblem) -> None:
         """New data in place; the previous solution is the initial guess."""
@@ -48,6 +49,8 @@ class ProxsuiteSession(QpSession):
         started from the iterate of an infeasible problem stops at a feasible point it calls
         solved, ~5e-6 from the optimum.
         """
+        if self._refused is not None:
+            return Solution(None, False, self._refused)
         self._qp.solve()
         status = self._qp.results.info.status
         if status != self._solved:

@@ -55,10 +55,14 @@ class QpSession(abc.ABC):
 
     #: Registered name.
     name: str = "session"
+    #: Why the loaded data cannot be solved (None: it can): set by a solver's set-up and
+    #: update, read by its solve.
+    _refused: str | None
 
     def __init__(self) -> None:
         self._structure: tuple[int, int, bytes] | None = None
         self._loaded: QpProblem | None = None
+        self._refused = "no problem loaded"
 
     @abc.abstractmethod
     def setup(self, problem: QpProblem) -> None:

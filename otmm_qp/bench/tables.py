@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from otmm_qp.bench.timing import BLOCK
-
 STEP_DEFINITION = (
     "otmm-qp: KinematicState.compute (kinematics + Jacobian + SVD) + Controller.step; "
     "pink / mink / Drake: the registered adapter's public solve(state, ẋ, q̇_prev) "
@@ -57,7 +55,7 @@ def markdown(result: dict[str, Any]) -> str:
         f"Libraries: {versions}  ",
         f"One step: {result['step_definition']}  ",
         f"Samples: {result['rounds']} rounds × the state sequence per pipeline, interleaved in "
-        f"blocks of {result.get('block', BLOCK)} consecutive states.",
+        f"blocks of {result['block']} consecutive states.",
         "",
     ]
     for scenario in result["scenarios"]:

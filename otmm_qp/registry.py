@@ -1,6 +1,6 @@
 """Name → implementation registry over ``importlib.metadata`` entry points.
 
-Every robot, filter, p-function, backend and trajectory, built-in or third
+Every robot, filter, p-function, backend, trajectory and limit, built-in or third
 party, is found the same way: an entry point in one of the groups below. A
 third-party package adds, in its ``pyproject.toml``::
 
@@ -35,7 +35,8 @@ P_FUNCTIONS = "otmm_qp.p_functions"
 BACKENDS = "otmm_qp.backends"
 TRAJECTORIES = "otmm_qp.trajectories"
 TASK_GENERATORS = "otmm_qp.task_generators"
-GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS)
+LIMITS = "otmm_qp.limits"
+GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS, LIMITS)
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,10 @@ def _base_class(group: str) -> type | None:
         from otmm_qp.tasks.generator import TaskGenerator
 
         return TaskGenerator
+    if group == LIMITS:
+        from otmm_qp.limits.limit import BaseLimit
+
+        return BaseLimit
     return None
 
 

@@ -209,12 +209,12 @@ def _weighted_limit_active_step(
 def test_pink_and_mink_solve_qps_weighted_limit_active_problem() -> None:
     pytest.importorskip("pink")
     pytest.importorskip("mink")
-    damping = 1e-6
+    weight = 1e-6  # μ
     answers, upper = _weighted_limit_active_step(
         {
-            "qp": {"type": "qp", "params": {"solver": "daqp", "damping": damping}},
-            "pink": {"type": "pink", "params": {"damping": damping}},
-            "mink": {"type": "mink", "params": {"damping": damping}},
+            "qp": {"type": "qp", "params": {"solver": "daqp", "regularization": weight}},
+            "pink": {"type": "pink", "params": {"regularization": weight}},
+            "mink": {"type": "mink", "params": {"regularization": weight}},
         }
     )
     assert answers["qp"][0] == pytest.approx(upper[0], abs=1e-9)  # the limit is active
@@ -226,12 +226,14 @@ def test_pink_and_mink_solve_qps_weighted_limit_active_problem() -> None:
 @pytest.mark.usefixtures("peer_entry_points")
 def test_the_weight_changes_the_answer_so_the_agreement_test_can_fail() -> None:
     answers, _ = _weighted_limit_active_step(
-        {"qp": {"type": "qp", "params": {"solver": "daqp", "damping": 1e-6}}}
+        {"qp": {"type": "qp", "params": {"solver": "daqp", "regularization": 1e-6}}}
     )
     robot = PinocchioArm(name="ur5", position_limits=[[-1.0, 1.0]] + [[-6.2, 6.2]] * 5)
     theta = np.array([0.99, -1.2, 1.5, -1.8, 0.6, 0.3])
     state = KinematicState.compute(robot, robot.configuration(theta))
-    backend = registry.create(registry.BACKENDS, "qp", {"solver": "daqp", "damping": 1e-6}, "qp")
+    backend = registry.create(
+        registry.BACKENDS, "qp", {"solver": "daqp", "regularization": 1e-6}, "qp"
+    )
     backend.bind(robot, 0.01)
     unweighted = backend.solve(state, np.array([-0.3, 0.2, 0.1, 0.2, -0.1, 0.3]), np.zeros(6))
     assert np.max(np.abs(unweighted.qdot - answers["qp"])) > 1e-2

@@ -43,6 +43,7 @@ from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.status import Status
 
 #: Resolution of the written PNGs [dots per inch].
 DPI = 110
@@ -52,12 +53,9 @@ SYMLOG_RATIO = 20.0
 LOG_DECADES = 2.0
 #: Lowest decade shown on a log axis, counted down from the largest value.
 LOG_FLOOR_DECADES = 7.0
-#: Marker style per backend status other than ``ok``: (marker, colour).
+#: Marker style per backend status other than ``ok``: (marker, colour), from ``Status.marker``.
 STATUS_STYLE: dict[str, tuple[str, str]] = {
-    "bounded": ("v", "tab:orange"),
-    "infeasible": ("X", "tab:red"),
-    "stuck": ("s", "tab:purple"),
-    "nonfinite": ("D", "black"),
+    str(status): status.marker for status in Status if status.marker is not None
 }
 _OTHER_STATUS = ("o", "tab:brown")
 _STOP_COLOUR = "tab:red"

@@ -40,6 +40,7 @@ from pathlib import Path
 from otmm_qp.exceptions import ConfigError, OutputPathError
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
 from otmm_qp.output.summary import RunOutcome
+from otmm_qp.status import Status
 
 #: ``(column, label, format)`` shown per scenario; every column is lower-is-better.
 REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = (
@@ -119,7 +120,7 @@ def _count(text: str | None) -> int:
 
 
 #: Backend statuses that mean a bound was relaxed or could not be met on that step.
-RELAXED_STATUSES = ("relaxed", "infeasible")
+RELAXED_STATUSES = tuple(str(status) for status in Status if status.relaxes_bound)
 
 
 def _read_text(results_dir: Path, path: Path) -> str:

@@ -7,7 +7,6 @@ Every number in them is computed here from the stored rows.
 
 from __future__ import annotations
 
-import html
 import io
 import math
 from collections.abc import Sequence
@@ -18,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.episodes import is_success
 from otmm_qp.studies.schema import StudyConfig
@@ -460,10 +460,12 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     body = markdown_to_html(
         "\n".join(line for line in markdown.splitlines() if not line.startswith("!["))
     )
-    images = "".join(f'<p><img src="{html.escape(f)}" alt="{html.escape(f)}"></p>' for f in figures)
+    images = "".join(
+        f'<p><img src="{escape(f, "attr")}" alt="{escape(f, "attr")}"></p>' for f in figures
+    )
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
-        f"<title>Study {html.escape(config.name)}</title>"
+        f"<title>Study {escape(config.name)}</title>"
         "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
         "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 5px}"
         "img{max-width:100%}</style></head><body>"

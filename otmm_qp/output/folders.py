@@ -121,13 +121,13 @@ def remove_kind_files(folder: Path, kind: str) -> None:
     """
     names = set(KIND_FILES.get(kind, ()))
     for entry in folder.iterdir():
-        if entry.name in (LOCK_NAME,):
+        if entry.name in (LOCK_NAME, KIND_NAME):
             continue
         if entry.is_symlink():
-            if entry.name in names or entry.name == KIND_NAME:
+            if entry.name in names:
                 entry.unlink()
             continue
-        if entry.is_file() and (entry.name in names or entry.name == KIND_NAME):
+        if entry.is_file() and entry.name in names:
             entry.unlink()
         elif entry.is_dir() and (entry.name in names or kind == "run") and _written_by_otmm(entry):
             shutil.rmtree(entry)

@@ -530,11 +530,13 @@ def write_report(results_dir: Path) -> tuple[Path, Path]:
 def write_any_report(results_dir: Path) -> tuple[Path, Path]:
     """The report of a results folder: a study report when it holds ``study.json``."""
     results_dir = Path(results_dir)
-    if (results_dir / "study.json").is_file():
+    if (results_dir / "study.json").is_file() or (results_dir / "study.json").is_symlink():
         from otmm_qp.studies.report import (  # type: ignore[import-not-found,unused-ignore]
             write_study_report,
         )
+        from otmm_qp.studies.storage import writing_report
 
-        html, markdown = write_study_report(results_dir)
+        with writing_report(results_dir):
+            html, markdown = write_study_report(results_dir)
         return Path(html), Path(markdown)
     return write_report(results_dir)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import math
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +30,7 @@ from otmm_qp.studies.statistics import (
     rank_with_ties,
     wilson_interval,
 )
-from otmm_qp.studies.storage import read_episodes, read_marker
+from otmm_qp.studies.storage import read_study_folder
 
 #: Metrics summarised by median + bootstrap interval: (column, label, unit).
 MEDIAN_METRICS: tuple[tuple[str, str, str], ...] = (
@@ -85,19 +86,20 @@ def _interval(value: float, low: float, high: float) -> str:
 
 
 def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config (from ``study.json``) and its rows.
+    """The study config (from ``study.json``) and the rows of this study and plan.
+
+    What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
+    stderr, one line per reason.
 
     Raises:
-        OtmmError: No study marker or no episodes in ``out``.
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
     """
-    marker = read_marker(out)
-    if marker is None:
-        raise OtmmError(f"{out}: no {'study.json'} here; not a study directory")
-    config = StudyConfig.model_validate(marker["config"])
-    table = read_episodes(out)
-    if table is None or table.num_rows == 0:
+    config, data = read_study_folder(out)
+    for line in data.ignored:
+        print(f"otmm-qp: report ignored {line}", file=sys.stderr)
+    if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = table.to_pylist()
+    rows = data.table.to_pylist()
     for row in rows:
         row["success"] = row.get("status") != "error" and is_success(row, config.success)
     return config, Rows(rows)

@@ -22,8 +22,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from otmm_qp.exceptions import OtmmError
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
+from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
 from otmm_qp.studies.spec import StudyPlan
 from otmm_qp.studies.storage import (
     PartWriter,
@@ -45,10 +45,6 @@ QUIET_WORKERS = {
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
 }
-
-
-class SchedulerUnreachable(OtmmError):
-    """The Dask scheduler address cannot be reached."""
 
 
 @dataclass
@@ -232,6 +228,8 @@ def run_study(
     """
     from otmm_qp.output.folders import claim_folder
 
+    if scheduler is not None and client is None:
+        scheduler = probe_scheduler(scheduler, CONNECT_TIMEOUT)  # before the folder is touched
     with claim_folder(out, "study", force):
         return _run_claimed(plan, out, source, force, client, (workers, scheduler), progress)
 

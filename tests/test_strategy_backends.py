@@ -268,3 +268,54 @@ def test_manipulability_step_stays_in_the_null_space_and_raises_w() -> None:
     np.testing.assert_allclose(
         backend.solve(s2, xdot, np.zeros(2)).qdot, np.linalg.solve(s2.jacobian, xdot)
     )
+
+
+def test_jparse_as_its_authors_run_it_row_gains_and_null_space_term() -> None:
+    """q̇ = J_s⁺(P + KΦ) G ẋ + (I − J_s⁺J_s) q̇_2 against a matrix form on the Panda pose task."""
+    panda = PinocchioArm(name="panda", task="pose")
+    home = np.zeros(7)
+    backend = JParseBackend(
+        gamma=0.2,
+        singular_gain=2.0,
+        position_gain=3.0,
+        orientation_gain=0.5,
+        secondary={"type": "posture", "gain": 3.0, "q_nominal": list(home), "max_speed": 0.6},
+    )
+    backend.bind(panda, 0.01)
+    rng = np.random.default_rng(4)
+    for q in (
+        np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]),
+        np.array([0.0, 0.0, 0.0, -0.05, 0.0, 0.1, 0.0]),
+    ):
+        state = KinematicState.compute(panda, panda.configuration(q))
+        xdot = rng.normal(size=6)
+        G = np.diag([3.0] * 3 + [0.5] * 3)
+        J = state.jacobian
+        q2 = np.clip(3.0 * (home - q), -0.6, 0.6)
+        U, S, Vt = np.linalg.svd(J)
+        J_safe = U @ np.diag(np.maximum(S, 0.2 * S.max())) @ Vt[:6]
+        N = np.eye(7) - np.linalg.pinv(J_safe) @ J_safe
+        expected = reference_jparse(J, G @ xdot, 0.2, 2.0) + N @ q2
+        np.testing.assert_allclose(
+            backend.solve(state, xdot, np.zeros(7)).qdot, expected, atol=1e-9
+        )
+        # The null-space term never changes the task velocity.
+        pure = backend.solve(state, np.zeros(6), np.zeros(7)).qdot
+        np.testing.assert_allclose(J @ pure, 0.0, atol=1e-10)
+    # Defaults keep today's J-PARSE exactly.
+    plain = JParseBackend()
+    plain.bind(panda, 0.01)
+    state = KinematicState.compute(panda, panda.configuration(np.full(7, 0.3)))
+    xdot = rng.normal(size=6)
+    np.testing.assert_array_equal(
+        plain.solve(state, xdot, np.zeros(7)).qdot,
+        state.Vt.T @ (plain.gains(state.sigma) * (xdot @ state.U)),
+    )
+
+
+def test_jparse_orientation_gain_needs_a_pose_task() -> None:
+    backend = JParseBackend(orientation_gain=2.0)
+    with pytest.raises(ParameterError, match="^orientation_gain: applies to pose tasks only"):
+        backend.bind(PlanarArm([1.0, 0.8]), 0.01)
+    with pytest.raises(ParameterError, match="^position_gain: must be >= 0"):
+        JParseBackend(position_gain=-1.0)

@@ -95,10 +95,10 @@ def peer_limit_set(
         return LimitSet((), ())
     entries = None if limits is None or limits is True else limits
     made = make_limits(entries, {"limit_gain": limit_gain})
-    for i, limit in enumerate(made.all):
+    for limit in made.all:
         if type(limit) not in PEER_LIMITS:
             raise ParameterError(
-                f"limits.{i}",
+                "limits",
                 f"{peer} has no counterpart of limit {limit.name!r}; allowed: velocity, position",
             )
     return made

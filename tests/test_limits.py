@@ -240,3 +240,12 @@ def test_details_record_the_box_each_step_solved() -> None:
 def test_parameter_errors_are_parameter_errors() -> None:
     with pytest.raises(ParameterError):
         BrakingDistanceLimit(a_max=float("nan"))
+
+
+def test_architecture_doc_shows_the_example_that_is_tested() -> None:
+    """docs/architecture.md prints tests/braking_limit.py's class verbatim."""
+    import inspect
+    from pathlib import Path
+
+    doc = (Path(__file__).parent.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert f"```python\n{inspect.getsource(BrakingDistanceLimit)}```" in doc

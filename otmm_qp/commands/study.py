@@ -23,7 +23,7 @@ EXIT_BAD_INPUT = 2
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``otmm-qp study``."""
     parser.add_argument("file", type=Path, help="YAML study file")
-    parser.add_argument("--out", type=Path, help="output directory (default: results/<study name>)")
+    parser.add_argument("--out", help="output directory (default: results/<safe study name>)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
         "--workers",
@@ -54,9 +54,13 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
+    from otmm_qp.output.folders import check_out_argument
+    from otmm_qp.output.paths import safe_name
+
+    given = check_out_argument(args.out) if args.out is not None else None
     config = load_study(args.file)
     plan = plan_study(config, str(args.file))
-    out = args.out if args.out is not None else Path("results") / config.name
+    out = given if given is not None else Path("results") / safe_name(config.name)
     for name, reason in plan.skipped:
         print(f"otmm-qp: skipped controller {name}: {reason}", file=sys.stderr)
     if args.quiet:
@@ -72,8 +76,10 @@ def run(args: argparse.Namespace) -> int:
     )
     if not args.no_report:
         from otmm_qp.studies.report import write_study_report
+        from otmm_qp.studies.storage import writing_report
 
-        html, markdown = write_study_report(out)
+        with writing_report(out):
+            html, markdown = write_study_report(out)
         print(f"  report: {html}\n          {markdown}")
     if outcome.interrupted:
         print(

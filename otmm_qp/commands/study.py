@@ -17,6 +17,7 @@ NAME = "study"
 HELP = "run a study (many random tasks x controllers) into a Parquet dataset, with a report"
 
 EXIT_INTERRUPTED = 130
+EXIT_BAD_INPUT = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the study; exit 0, 2 (bad input) or 130 (interrupted, dataset kept)."""
+    """Run the study; exit 0, 2 (bad input, or episodes that failed) or 130 (interrupted).
+
+    Every episode is stored, a failed one (a plugin exception, a malformed ``q̇``, an
+    infeasible QP under ``raise``) with its ``status`` and ``error_message``; the exit status
+    is then 2, as for ``run``, after the report is written.
+    """
     from otmm_qp.studies.execute import run_study
     from otmm_qp.studies.spec import load_study, plan_study
 
@@ -81,6 +87,13 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
+    if outcome.failed:
+        print(
+            f"otmm-qp: error: {outcome.failed} of {outcome.ran} episodes failed or stopped early; "
+            "they are stored with status 'error' or 'stopped' and their error_message",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
     return 0
 
 

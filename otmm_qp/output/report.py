@@ -41,6 +41,7 @@ from otmm_qp.output.markdown import markdown_to_html
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
 from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
+from otmm_qp.status import Status
 
 #: ``(column, heading, format)`` shown per scenario, from the metric table; every column is
 #: lower-is-better (``tests/test_metric_table.py``).
@@ -121,7 +122,7 @@ def _count(text: str | None) -> int:
 
 
 #: Backend statuses that mean a bound was relaxed or could not be met on that step.
-RELAXED_STATUSES = ("relaxed", "infeasible")
+RELAXED_STATUSES = tuple(str(status) for status in Status if status.relaxes_bound)
 
 
 def _read_text(results_dir: Path, path: Path) -> str:

@@ -35,7 +35,18 @@ P_FUNCTIONS = "otmm_qp.p_functions"
 BACKENDS = "otmm_qp.backends"
 TRAJECTORIES = "otmm_qp.trajectories"
 TASK_GENERATORS = "otmm_qp.task_generators"
-GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS)
+PLANTS = "otmm_qp.plants"
+CONDITIONING = "otmm_qp.conditioning"
+GROUPS = (
+    ROBOTS,
+    FILTERS,
+    P_FUNCTIONS,
+    BACKENDS,
+    TRAJECTORIES,
+    TASK_GENERATORS,
+    PLANTS,
+    CONDITIONING,
+)
 
 
 @dataclass(frozen=True)
@@ -80,6 +91,14 @@ def _base_class(group: str) -> type | None:
         from otmm_qp.tasks.generator import TaskGenerator
 
         return TaskGenerator
+    if group == PLANTS:
+        from otmm_qp.plants.plant import Plant
+
+        return Plant
+    if group == CONDITIONING:
+        from otmm_qp.conditioning.stage import CommandStage
+
+        return CommandStage
     return None
 
 

@@ -11,10 +11,12 @@ import tempfile
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from otmm_qp import registry
+from otmm_qp.conditioning.pipeline import Conditioning, build_conditioning
 from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, SuiteConfig
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import (
@@ -24,6 +26,7 @@ from otmm_qp.exceptions import (
     PeerUnavailable,
     UnreachableTrajectory,
 )
+from otmm_qp.plants.chain import PlantChain, build_plant
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.simulation.simulate import task_position
@@ -78,6 +81,8 @@ class PreparedExperiment:
         clik_gain: CLIK gain [1/s].
         task_weight: Diagonal task weight, shape ``(n,)``, or None.
         skipped: Controllers whose peer library is missing (reported, never run).
+        plant: Plant config per controller name (``{type, ...}`` or a list; absent: ideal).
+        conditioning: Conditioning stages per controller name (absent: none).
     """
 
     config: ExperimentConfig
@@ -91,6 +96,15 @@ class PreparedExperiment:
     clik_gain: float
     task_weight: FloatArray | None
     skipped: list[SkippedController] = field(default_factory=list)
+    plant: dict[str, Any] = field(default_factory=dict)
+    conditioning: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+
+    def build_stage(self, controller: str) -> tuple[PlantChain, Conditioning]:
+        """A fresh plant and the conditioning of ``controller`` for one run (both stateful)."""
+        return (
+            build_plant(self.plant.get(controller)),
+            build_conditioning(self.conditioning.get(controller)),
+        )
 
 
 def build_controller(
@@ -295,6 +309,16 @@ def prepare_experiment(
     check_controllers(
         controllers, robot, KinematicState.compute(robot, q0, weight), trajectory, field
     )
+    default_plant = config.plant if config.plant is not None else suite.plant
+    plants = {c.name: plant_record(c.plant or default_plant) for c in config.controllers}
+    conditioning = {
+        c.name: [dict(s.params, type=s.type) for s in c.conditioning]
+        for c in config.controllers
+        if c.conditioning
+    }
+    for plant_spec in {repr(p): p for p in plants.values()}.values():
+        check_plant(plant_spec, robot, q0, dt, f"{field}.plant")
+    check_conditioning(conditioning, robot, dt, field)
     return PreparedExperiment(
         config=config,
         robot=robot,
@@ -307,7 +331,62 @@ def prepare_experiment(
         clik_gain=config.clik_gain if config.clik_gain is not None else suite.clik_gain,
         task_weight=weight,
         skipped=skipped,
+        plant=plants,
+        conditioning=conditioning,
     )
+
+
+def build_stage(config: ControllerConfig) -> tuple[PlantChain, Conditioning]:
+    """A fresh plant (the controller's own, else ideal) and conditioning for one run."""
+    conditioning = [dict(s.params, type=s.type) for s in config.conditioning]
+    return build_plant(plant_record(config.plant)), build_conditioning(conditioning)
+
+
+def plant_record(spec: Any) -> Any:
+    """A plant config (a :class:`PluginSpec`, a list of them, or None) as plain data."""
+    if spec is None:
+        return None
+    if isinstance(spec, list):
+        return [dict(s.params, type=s.type) for s in spec]
+    return dict(spec.params, type=spec.type)
+
+
+def check_plant(plant: Any, robot: Robot, q0: FloatArray, dt: float, field: str) -> None:
+    """Build and reset a plant once on ``robot`` at ``q0``, so bad input fails before compute.
+
+    Raises:
+        ConfigError: Naming ``field`` (the plant's config path) and what is wrong: an
+            out-of-range parameter, a MuJoCo model that does not compile, a URDF without
+            inertias or effort limits, MuJoCo not installed.
+    """
+    try:
+        build_plant(plant, field).reset(robot, q0, dt)
+    except ConfigError as error:
+        if error.field.startswith(field):
+            raise
+        raise ConfigError(f"{field}.{error.field}".rstrip("."), error.message) from None
+    except DimensionError as error:
+        raise ConfigError(field, str(error)) from None
+
+
+def check_conditioning(
+    conditioning: dict[str, list[dict[str, Any]]], robot: Robot, dt: float, field: str
+) -> None:
+    """Build and reset every controller's conditioning stages once (see :func:`check_plant`).
+
+    Raises:
+        ConfigError: Naming the controller's ``conditioning`` stage and what is wrong.
+    """
+    for name, stages in conditioning.items():
+        where = f"{field}.controllers ({name}).conditioning"
+        try:
+            build_conditioning(stages, where).reset(robot, dt)
+        except ConfigError as error:
+            if error.field.startswith(where):
+                raise
+            raise ConfigError(f"{where}.{error.field}".rstrip("."), error.message) from None
+        except DimensionError as error:
+            raise ConfigError(where, str(error)) from None
 
 
 def _start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray:

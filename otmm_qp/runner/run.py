@@ -109,6 +109,7 @@ def run_experiment(
     records = []
     for mode in prepared.loop_modes:
         for controller in prepared.controllers:
+            plant, conditioning = prepared.build_stage(controller.name)
             result = simulate(
                 prepared.robot,
                 controller,
@@ -120,6 +121,8 @@ def run_experiment(
                 prepared.clik_gain,
                 prepared.task_weight,
                 prepared.config.name,
+                plant=plant,
+                conditioning=conditioning,
             )
             records.append(RunRecord(result, compute_metrics(result, settings)))
             if after_run is not None:

@@ -8,8 +8,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
 from otmm_qp.exceptions import DimensionError, InfeasibleProblem, OtmmError, ParameterError
+from otmm_qp.plants.chain import PlantChain
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.loop_modes import LOOP_MODES, LoopMode, commanded_velocity
 from otmm_qp.simulation.recorder import RunRecorder, task_position
@@ -84,6 +86,8 @@ def simulate(
     experiment: str = "",
     *,
     on_step: StepObserver | None = None,
+    plant: PlantChain | None = None,
+    conditioning: Conditioning | None = None,
 ) -> RunResult:
     r"""Run ``controller`` on ``robot`` along ``trajectory`` with explicit Euler integration.
 
@@ -101,6 +105,10 @@ def simulate(
         task_weight: Diagonal task weight ``W``, shape ``(n,)``, finite and > 0.
         experiment: Experiment name recorded in the result.
         on_step: Observer called after each step (e.g. to keep the states a benchmark replays).
+        plant: What happens between the command and the next state
+            (:mod:`otmm_qp.plants`); None is the ideal plant, ``q ⊕ q̇ dt``, bit for bit.
+        conditioning: Command stages applied to the controller's ``q̇`` before the plant
+            (:mod:`otmm_qp.conditioning`); None: none.
 
     Returns:
         The time series. A typed error inside the loop (e.g. an infeasible QP with the
@@ -115,10 +123,28 @@ def simulate(
     q, weight, recorder = _start_run(
         robot, controller, q0, dt, duration, loop_mode, clik_gain, task_weight
     )
+    stage = _start_plant(robot, q, dt, plant, conditioning)
     error_message = _run_steps(
-        robot, controller, trajectory, q, weight, recorder, loop_mode, dt, clik_gain, on_step
-    )
-    return recorder.result(controller, loop_mode, dt, experiment, error_message)
+        robot, controller, trajectory, q, weight, recorder, loop_mode, dt, clik_gain, on_step,
+        stage,
+    )  # fmt: skip
+    return recorder.result(controller, loop_mode, dt, experiment, error_message, stage)
+
+
+def _start_plant(
+    robot: Robot,
+    q: FloatArray,
+    dt: float,
+    plant: PlantChain | None,
+    conditioning: Conditioning | None,
+) -> tuple[PlantChain, Conditioning]:
+    """The run's plant and conditioning (ideal and none by default), reset at ``q`` (nq,)."""
+    plant = plant if plant is not None else PlantChain()
+    conditioning = conditioning if conditioning is not None else Conditioning()
+    if np.all(np.isfinite(q)):
+        plant.reset(robot, q, dt)
+    conditioning.reset(robot, dt)
+    return plant, conditioning
 
 
 def _start_run(
@@ -150,8 +176,14 @@ def _run_steps(
     dt: float,
     clik_gain: float,
     on_step: StepObserver | None,
+    stage: tuple[PlantChain, Conditioning],
 ) -> str | None:
-    """The control loop from ``q``, filling ``recorder``; why it stopped early, or None."""
+    """The control loop from ``q``, filling ``recorder``; why it stopped early, or None.
+
+    The controller sees ``plant.measure(q)``; the recorder logs the true state; the
+    conditioned command goes through ``plant.advance`` (the one place ``q`` is updated).
+    """
+    plant, conditioning = stage
     qdot_prev = np.zeros(robot.nv)
     error_message = None if np.all(np.isfinite(q)) else "q0: contains NaN or inf; no step taken"
     for k in range(len(recorder.t) if error_message is None else 0):
@@ -159,13 +191,18 @@ def _run_steps(
         desired, desired_velocity = trajectory.sample(tk)
         tic = time.perf_counter()
         try:
-            state = KinematicState.compute(robot, q, weight)
+            state = KinematicState.compute(robot, plant.measure(q), weight)
             tracking_error = robot.task_error(desired, state.x)
             command = commanded_velocity(
                 loop_mode, robot, trajectory, tk, dt, state.x, tracking_error,
                 desired_velocity, clik_gain,
             )  # fmt: skip
             output = controller.step(state, command, qdot_prev)
+            qdot = conditioning.apply(state.q, output.qdot)
+            true_state = state
+            if not plant.exact_measurement:  # metrics on the true state, never the measured one
+                true_state = KinematicState.compute(robot, q, weight)
+                tracking_error = robot.task_error(desired, true_state.x)
         except InfeasibleProblem as error:
             error_message = str(InfeasibleProblem(k, error.detail))
             break
@@ -173,9 +210,14 @@ def _run_steps(
             error_message = f"step {k}: {error}"
             break
         seconds = time.perf_counter() - tic
-        recorder.record(k, state, command, tracking_error, desired, output, seconds)
+        recorder.record(k, true_state, command, tracking_error, desired, output, seconds)
         if on_step is not None:
             on_step(k, state, command, qdot_prev, output)
-        q = robot.integrate(q, output.qdot, dt)
-        qdot_prev = output.qdot
+        step = plant.advance(q, qdot)
+        recorder.record_plant(k, qdot, step, conditioning.active)
+        if not step.stable:
+            error_message = f"step {k}: plant {plant.label()} unstable: {step.detail}"
+            break
+        q = step.q
+        qdot_prev = qdot
     return error_message

@@ -21,6 +21,7 @@ from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metric
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
+from otmm_qp.studies.spec import plant_name
 from otmm_qp.tasks.generator import Task, TaskGenerator
 
 #: Metrics that measure wall-clock time: they differ between runs and executors.
@@ -147,6 +148,7 @@ def _base_row(
         "controller_params": json.dumps(params, sort_keys=True, default=str),
         "loop_mode": mode,
         "dt": config.dt,
+        **({"plant": plant_name(spec)} if config.plants is not None else {}),
     }
 
 
@@ -191,7 +193,7 @@ def _episode_duration(config: StudyConfig, task: Task) -> float:
 
 def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
     """Generate the unit's task and run its episodes, appending rows (never raising)."""
-    from otmm_qp.runner.build import build_controller
+    from otmm_qp.runner.build import build_controller, build_stage
     from otmm_qp.simulation.simulate import simulate
 
     config, controllers = _study(payload)
@@ -211,6 +213,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
+            plant, conditioning = build_stage(controllers[controller])
             q0 = robot.check_start(task.q0)
             run = simulate(
                 robot,
@@ -223,6 +226,8 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
                 clik_gain=config.clik_gain,
                 task_weight=weight,
                 experiment=config.name,
+                plant=plant,
+                conditioning=conditioning,
             )
             metrics = compute_metrics(run, settings)
         except Exception as error:  # noqa: BLE001 - recorded in the row

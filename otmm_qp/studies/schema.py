@@ -22,6 +22,13 @@ A study runs every controller on every task drawn by its generators, per robot::
         backend: {type: pinv}
         grid: {sigma_s: [0.01, 0.05], p: [linear, cbrt]}   # 4 controllers
 
+``plants`` (optional) is one more grid axis: every controller runs under each plant on the
+same tasks, named ``controller@plant``::
+
+    plants:
+      - {name: ideal, plant: {type: ideal}}
+      - {name: lag20-delay1, plant: [{type: lag, tau: 0.02}, {type: delay, steps: 1}]}
+
 ``grid`` keys are a parameter name (set in the one block of the controller that accepts
 it) or an explicit ``backend.NAME`` / ``filters.INDEX.NAME``.
 """
@@ -32,7 +39,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from otmm_qp.config.schema import MetricsConfig, PluginSpec
+from otmm_qp.config.schema import MetricsConfig, PlantConfig, PluginSpec
 from otmm_qp.simulation.loop_modes import LoopMode
 
 
@@ -75,7 +82,15 @@ class StudyController(_Strict):
     name: str = Field(min_length=1)
     filters: list[PluginSpec] = Field(default_factory=list)
     backend: PluginSpec
+    conditioning: list[PluginSpec] = Field(default_factory=list)
     grid: dict[str, list[Any]] = Field(default_factory=dict)
+
+
+class StudyPlant(_Strict):
+    """One value of the ``plants`` axis: a label and a plant (a stage or a list of stages)."""
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
+    plant: PlantConfig
 
 
 class DurationRule(_Strict):
@@ -134,6 +149,16 @@ class StudyConfig(_Strict):
     robots: list[StudyRobot] = Field(min_length=1)
     generators: list[GeneratorSpec] = Field(min_length=1)
     controllers: list[StudyController] = Field(min_length=1)
+    plants: list[StudyPlant] | None = Field(None, min_length=1)
+
+    @field_validator("plants")
+    @classmethod
+    def _unique_plants(cls, value: list[StudyPlant] | None) -> list[StudyPlant] | None:
+        names = [p.name for p in value or []]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"plant names must be unique; repeated: {', '.join(duplicates)}")
+        return value
 
     @field_validator("loop_modes")
     @classmethod

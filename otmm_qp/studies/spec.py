@@ -137,11 +137,14 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
                     )
                     + "]"
                 )
-            expanded.append(
-                ControllerConfig.model_validate(
-                    {"name": label, "filters": filters, "backend": backend}
-                )
-            )
+            conditioning = [dict(s.params, type=s.type) for s in spec.conditioning]
+            for plant_name, plant in _plant_axis(config):
+                record: dict[str, Any] = {"name": label, "filters": filters, "backend": backend}
+                if conditioning:
+                    record["conditioning"] = conditioning
+                if plant_name is not None:
+                    record.update(name=f"{label}@{plant_name}", plant=plant)
+                expanded.append(ControllerConfig.model_validate(record))
     names = [c.name for c in expanded]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
@@ -151,13 +154,38 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
     return expanded
 
 
+def _plant_axis(config: StudyConfig) -> list[tuple[str | None, Any]]:
+    """``(name, plant record)`` of each value of the ``plants`` axis; ``[(None, None)]`` if none."""
+    from otmm_qp.runner.build import plant_record
+
+    if config.plants is None:
+        return [(None, None)]
+    return [(p.name, plant_record(p.plant)) for p in config.plants]
+
+
+def plant_name(config: ControllerConfig) -> str:
+    """The ``plants`` label of an expanded controller (``ideal`` without a plants axis)."""
+    return config.name.rsplit("@", 1)[1] if config.plant is not None else "ideal"
+
+
 def controller_record(config: ControllerConfig) -> dict[str, Any]:
-    """JSON-ready record of a controller (name, filters, backend with parameters)."""
-    return {
+    """JSON-ready record of a controller (name, filters, backend with parameters).
+
+    ``conditioning`` and ``plant`` appear only when set, so the episode keys of a study
+    without them are those it had before plants existed.
+    """
+    from otmm_qp.runner.build import plant_record
+
+    record: dict[str, Any] = {
         "name": config.name,
         "filters": [dict(f.params, type=f.type) for f in config.filters],
         "backend": dict(config.backend.params, type=config.backend.type),
     }
+    if config.conditioning:
+        record["conditioning"] = [dict(s.params, type=s.type) for s in config.conditioning]
+    if config.plant is not None:
+        record["plant"] = plant_record(config.plant)
+    return record
 
 
 @dataclass(frozen=True)
@@ -270,7 +298,35 @@ def check_plugins(
             build_controller(controller, f"{source}: controllers.{k} ({controller.name})")
         except PeerUnavailable as error:
             skipped.append((controller.name, str(error)))
+    _check_plants(config, controllers, source)
     return skipped
+
+
+def _check_plants(config: StudyConfig, controllers: list[ControllerConfig], source: str) -> None:
+    """Build and reset every plant and conditioning on every robot at its first task's start.
+
+    Raises:
+        ConfigError: Naming ``plants.I.plant`` or the controller's ``conditioning``.
+    """
+    from otmm_qp.runner.build import check_conditioning, check_plant, plant_record
+
+    for i, robot_spec in enumerate(config.robots):
+        robot = registry.create(
+            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
+        )
+        lower, upper = robot.position_limits
+        middle = np.where(np.isfinite(lower + upper), (lower + upper) / 2.0, 0.0)
+        q0 = robot.configuration(middle)
+        for j, plant in enumerate(config.plants or []):
+            check_plant(
+                plant_record(plant.plant), robot, q0, config.dt, f"{source}: plants.{j}.plant"
+            )
+        conditioning = {
+            c.name: [dict(s.params, type=s.type) for s in c.conditioning]
+            for c in controllers
+            if c.conditioning
+        }
+        check_conditioning(conditioning, robot, config.dt, source)
 
 
 def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:

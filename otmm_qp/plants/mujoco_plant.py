@@ -44,6 +44,11 @@ __all__ = ["MujocoPlant"]
 MUJOCO_HINT = "pip install mujoco (or otmm-qp[peers])"
 
 
+def _one_line(error: BaseException) -> str:
+    """MuJoCo's (multi-line) message on one line."""
+    return " ".join(str(error).split())
+
+
 class MujocoPlant(Plant):
     """MuJoCo body with per-joint PD servos on the integrated command.
 
@@ -114,7 +119,7 @@ class MujocoPlant(Plant):
             self.tau_max = effort_limits(description.urdf, robot.joint_names, self.effort_limit, "")
             spec, _ = models.mujoco_spec(description)
         except RobotLoadError as error:
-            raise ConfigError("", f"MuJoCo model: {error}") from None
+            raise ConfigError("", f"MuJoCo model: {_one_line(error)}") from None
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.gravity = [0.0, 0.0, -9.81] if self.gravity else [0.0, 0.0, 0.0]
         joints = {j.name: j for j in spec.joints}
@@ -141,7 +146,7 @@ class MujocoPlant(Plant):
             model = spec.compile()
             joint_map = models.mujoco_joint_map(robot, model)
         except (ValueError, RobotLoadError) as error:
-            raise ConfigError("", f"MuJoCo cannot compile the model: {error}") from None
+            raise ConfigError("", f"MuJoCo cannot compile the model: {_one_line(error)}") from None
         self._robot = robot
         self._model = model
         self._data = mujoco.MjData(model)

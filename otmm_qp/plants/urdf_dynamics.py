@@ -50,8 +50,8 @@ def effort_limits(
         root = ET.fromstring(urdf)
     except ET.ParseError as error:
         raise ConfigError(field, f"the robot's URDF is not XML: {error}") from None
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    links = {link.get("name"): link for link in root.iter("link")}
+    joints = {j.get("name"): j for j in root.findall("joint")}  # not <transmission> joints
+    links = {link.get("name"): link for link in root.findall("link")}
     limits = np.zeros(len(joint_names))
     for i, name in enumerate(joint_names):
         joint = joints.get(name)

@@ -315,7 +315,10 @@ def _check_plants(config: StudyConfig, controllers: list[ControllerConfig], sour
             registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
         )
         lower, upper = robot.position_limits
-        middle = np.where(np.isfinite(lower + upper), (lower + upper) / 2.0, 0.0)
+        bounded = np.isfinite(lower) & np.isfinite(upper)
+        middle = np.where(
+            bounded, (np.where(bounded, lower, 0.0) + np.where(bounded, upper, 0.0)) / 2, 0.0
+        )
         q0 = robot.configuration(middle)
         for j, plant in enumerate(config.plants or []):
             check_plant(

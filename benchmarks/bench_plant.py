@@ -25,6 +25,7 @@ from otmm_qp.controller import Controller  # noqa: E402
 from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
 from otmm_qp.plants import build_plant  # noqa: E402
 from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
+from otmm_qp.simulation.episode import Episode, Loop  # noqa: E402
 from otmm_qp.simulation.simulate import simulate  # noqa: E402
 from otmm_qp.trajectories.pose import PoseLineTrajectory  # noqa: E402
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend  # noqa: E402
@@ -57,7 +58,8 @@ def record(steps: int) -> tuple[PinocchioArm, np.ndarray, np.ndarray]:
     q0 = robot.configuration(np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]))
     trajectory = PoseLineTrajectory(robot.forward(q0), end=[0.95, 0.0, 0.45], duration=4.0)
     controller = Controller("r", [OtmmFilter(0.05, corank="all")], DampedLeastSquaresBackend(0.05))
-    result = simulate(robot, controller, trajectory, q0, DT, steps * DT, "clik", 10.0)
+    episode = Episode(robot, trajectory, q0, DT, steps * DT, loop=Loop("clik", 10.0))
+    result = simulate(episode, controller)
     return robot, q0, result.qdot[:steps]
 
 

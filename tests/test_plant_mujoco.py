@@ -16,7 +16,8 @@ from otmm_qp.config.load import load_config  # noqa: E402
 from otmm_qp.exceptions import ConfigError  # noqa: E402
 from otmm_qp.metrics import compute_metrics  # noqa: E402
 from otmm_qp.plants import build_plant  # noqa: E402
-from otmm_qp.runner.build import PreparedExperiment, check_plant, prepare_experiment  # noqa: E402
+from otmm_qp.runner.plant_stage import check_plant  # noqa: E402
+from otmm_qp.runner.prepare import PreparedExperiment, prepare_experiment  # noqa: E402
 from otmm_qp.simulation.run_result import RunResult  # noqa: E402
 from otmm_qp.simulation.simulate import simulate  # noqa: E402
 
@@ -33,10 +34,10 @@ def panda() -> PreparedExperiment:
 def run(spec: object, controller: str = "dls", duration: float | None = None) -> RunResult:
     prep = panda()
     chosen = next(c for c in prep.controllers if c.name == controller)
-    return simulate(
-        prep.robot, chosen, prep.trajectory, prep.q0, prep.dt, duration or prep.duration,
-        "clik", prep.clik_gain, prep.task_weight, plant=build_plant(spec),
-    )  # fmt: skip
+    episode = prep.episodes[0]
+    if duration is not None:
+        episode = dataclasses.replace(episode, duration=duration)
+    return simulate(episode, chosen, plant=build_plant(spec))
 
 
 def test_stiff_servos_without_gravity_track_the_ideal_plant() -> None:

@@ -137,7 +137,7 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
                     )
                     + "]"
                 )
-            conditioning = [dict(s.params, type=s.type) for s in spec.conditioning]
+            conditioning = [dict(c.params, type=c.type) for c in spec.conditioning]
             for plant_name, plant in _plant_axis(config):
                 record: dict[str, Any] = {"name": label, "filters": filters, "backend": backend}
                 if conditioning:
@@ -156,7 +156,7 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
 
 def _plant_axis(config: StudyConfig) -> list[tuple[str | None, Any]]:
     """``(name, plant record)`` of each value of the ``plants`` axis; ``[(None, None)]`` if none."""
-    from otmm_qp.runner.build import plant_record
+    from otmm_qp.runner.plant_stage import plant_record
 
     if config.plants is None:
         return [(None, None)]
@@ -174,7 +174,7 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
     ``conditioning`` and ``plant`` appear only when set, so the episode keys of a study
     without them are those it had before plants existed.
     """
-    from otmm_qp.runner.build import plant_record
+    from otmm_qp.runner.plant_stage import plant_record
 
     record: dict[str, Any] = {
         "name": config.name,
@@ -261,75 +261,105 @@ def check_plugins(
 ) -> list[tuple[str, str]]:
     """Build every robot, generator and controller once so bad input fails before any work.
 
+    Each robot is built once; each generator draws its first task on each robot (a generator
+    that cannot work on a robot fails here), and every controller is prepared like a run's
+    (:func:`~otmm_qp.runner.prepare.prepare`: one dry-run step on a copy) on the robot's first
+    task, whose episode also meets the step cap.
+
     Returns:
         ``(name, reason)`` of controllers skipped because their peer library is missing.
 
     Raises:
-        ConfigError: Unknown plugin or parameter, with its path.
+        ConfigError: Unknown plugin or parameter, a controller that does not fit a robot, or
+            an episode over ``max_steps``, with its path.
     """
-    from otmm_qp.runner.build import build_controller
+    from otmm_qp.runner.build import build_controller, load_robot
+    from otmm_qp.runner.prepare import prepare
+    from otmm_qp.studies.episodes import study_episode
 
-    for i, robot in enumerate(config.robots):
-        built = registry.create(
-            registry.ROBOTS, robot.robot.type, robot.robot.params, f"{source}: robots.{i}.robot"
-        )
-        if robot.task_weight is not None and len(robot.task_weight) != built.task_dim:
-            raise ConfigError(
-                f"{source}: robots.{i}.task_weight",
-                f"expected {built.task_dim} weights, got {len(robot.task_weight)}",
-            )
-    for j, gen in enumerate(config.generators):
+    robots = [
+        load_robot(spec.robot, f"{source}: robots.{i}.robot")
+        for i, spec in enumerate(config.robots)
+    ]
+    generators = [
         registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
-    for i, robot_spec in enumerate(config.robots):
-        robot = registry.create(
-            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
-        )
-        weight = np.asarray(robot_spec.task_weight, dtype=float) if robot_spec.task_weight else None
-        for j, gen in enumerate(config.generators):
-            generator = registry.create(registry.TASK_GENERATORS, gen.type, gen.params, "")
-            seed = task_seed(config.seed, robot_spec.name, gen.type, 0)
-            try:  # the first task: a generator that cannot work on this robot fails here
-                generator.generate(robot, seed, weight)
-            except TaskGenerationError as error:
-                raise ConfigError(f"{source}: generators.{j} ({gen.type})", str(error)) from None
-    skipped: list[tuple[str, str]] = []
+        for j, gen in enumerate(config.generators)
+    ]
+    built, skipped = [], []
     for k, controller in enumerate(controllers):
         try:
-            build_controller(controller, f"{source}: controllers.{k} ({controller.name})")
+            built.append(
+                build_controller(
+                    controller,
+                    f"{source}: controllers.{k} ({controller.name})",
+                    config.metrics.blow_up_speed,
+                )
+            )
         except PeerUnavailable as error:
             skipped.append((controller.name, str(error)))
-    _check_plants(config, controllers, source)
+    for i, (spec, robot) in enumerate(zip(config.robots, robots, strict=True)):
+        weight = None
+        if spec.task_weight is not None:
+            if len(spec.task_weight) != robot.task_dim:
+                raise ConfigError(
+                    f"{source}: robots.{i}.task_weight",
+                    f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
+                )
+            weight = np.asarray(spec.task_weight, dtype=float)
+        tasks = [
+            _first_task(config, spec.name, j, generator, robot, weight, source)
+            for j, generator in enumerate(generators)
+        ]
+        first = tasks[0]
+        field = f"{source}: robots.{i} ({spec.name}) first task of generators.0"
+        try:
+            episode = study_episode(config, robot, first, weight, config.loop_modes[0])
+        except ConfigError as error:
+            where = "duration" if error.field == "duration" else error.field
+            raise ConfigError(f"{field}: {where}", error.message) from None
+        except OtmmError as error:
+            raise ConfigError(field, str(error)) from None
+        prepare(episode, built, f"{source}: robots.{i}", reachable=False)
+        _check_stages(config, controllers, robot, episode.q0, source)
     return skipped
 
 
-def _check_plants(config: StudyConfig, controllers: list[ControllerConfig], source: str) -> None:
-    """Build and reset every plant and conditioning on every robot at its first task's start.
+def _check_stages(
+    config: StudyConfig, controllers: list[ControllerConfig], robot: Any, q0: Any, source: str
+) -> None:
+    """Build and reset every plant of the axis and every conditioning on ``robot`` at ``q0``.
 
     Raises:
         ConfigError: Naming ``plants.I.plant`` or the controller's ``conditioning``.
     """
-    from otmm_qp.runner.build import check_conditioning, check_plant, plant_record
+    from otmm_qp.runner.plant_stage import check_conditioning, check_plant, plant_record
 
-    for i, robot_spec in enumerate(config.robots):
-        robot = registry.create(
-            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
-        )
-        lower, upper = robot.position_limits
-        bounded = np.isfinite(lower) & np.isfinite(upper)
-        middle = np.where(
-            bounded, (np.where(bounded, lower, 0.0) + np.where(bounded, upper, 0.0)) / 2, 0.0
-        )
-        q0 = robot.configuration(middle)
-        for j, plant in enumerate(config.plants or []):
-            check_plant(
-                plant_record(plant.plant), robot, q0, config.dt, f"{source}: plants.{j}.plant"
-            )
-        conditioning = {
-            c.name: [dict(s.params, type=s.type) for s in c.conditioning]
-            for c in controllers
-            if c.conditioning
-        }
-        check_conditioning(conditioning, robot, config.dt, source)
+    for j, plant in enumerate(config.plants or []):
+        check_plant(plant_record(plant.plant), robot, q0, config.dt, f"{source}: plants.{j}.plant")
+    conditioning = {
+        c.name: [dict(s.params, type=s.type) for s in c.conditioning]
+        for c in controllers
+        if c.conditioning
+    }
+    check_conditioning(conditioning, robot, config.dt, source)
+
+
+def _first_task(
+    config: StudyConfig,
+    robot_name: str,
+    index: int,
+    generator: Any,
+    robot: Any,
+    weight: Any,
+    source: str,
+) -> Any:
+    """The generator's first task on ``robot``; a generator that cannot work on it is refused."""
+    gen = config.generators[index]
+    seed = task_seed(config.seed, robot_name, gen.type, 0)
+    try:
+        return generator.generate(robot, seed, weight)
+    except TaskGenerationError as error:
+        raise ConfigError(f"{source}: generators.{index} ({gen.type})", str(error)) from None
 
 
 def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:

@@ -51,7 +51,9 @@ def _write(tmp_path: Path, plant: str) -> Path:
 
 def test_run_with_a_plant_per_experiment_records_the_true_motion(tmp_path: Path) -> None:
     config = _write(tmp_path, "plant: [{type: lag, tau: 0.05}, {type: sensor, noise: 1.0e-3}]")
-    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert (
+        main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"]) == 0
+    )
     summary = _rows(tmp_path / "out" / "summary.csv")
     assert {r["controller"] for r in summary} == {"otmm", "dls-conditioned"}
     for row in summary:
@@ -87,7 +89,10 @@ def test_bad_plants_are_one_line_exit_2_before_compute(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], plant: str, field: str
 ) -> None:
     out = tmp_path / "out"
-    assert main(["run", str(_write(tmp_path, plant)), "--out", str(out), "--quiet"]) == 2
+    assert (
+        main(["run", str(_write(tmp_path, plant)), "--out", str(out), "--quiet", "--no-figures"])
+        == 2
+    )
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Traceback" not in err
     assert f": {field}:" in err or f" {field}:" in err, err
@@ -159,3 +164,28 @@ def test_bench_plant_runs_tiny() -> None:
     )
     assert done.returncode == 0, done.stderr
     assert "plant mujoco (2 ms)" in done.stdout and "stage jerk_limit" in done.stdout
+
+
+def test_shipped_plants_study_plans_and_runs_a_slice(tmp_path: Path) -> None:
+    import yaml
+
+    from otmm_qp.studies.spec import load_study
+
+    shipped = load_study(ROOT / "configs/studies/plants.yaml")
+    controllers = expand_controllers(shipped)
+    assert len(controllers) == 24 and sum(g.count for g in shipped.generators) == 20
+    assert {c.name.rsplit("@", 1)[1] for c in controllers} == {
+        "ideal", "lag20ms-delay1", "noise1e-4", "mujoco",
+    }  # fmt: skip
+    data = yaml.safe_load((ROOT / "configs/studies/plants.yaml").read_text(encoding="utf-8"))
+    data["robots"] = data["robots"][1:]  # Panda
+    data["generators"] = [dict(data["generators"][0], count=1)]
+    data["controllers"] = data["controllers"][2:5]  # qp, OTMM+pinv, OTMM+qp
+    config = tmp_path / "slice.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    out = tmp_path / "slice"
+    assert main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet"]) in (0, 2)
+    rows = read_episodes(out).to_pylist()  # type: ignore[union-attr]
+    assert len(rows) == 12 and all(r["status"] in ("ok", "stopped") for r in rows)
+    mujoco = [r for r in rows if r["plant"] == "mujoco"]
+    assert all(0.0 < r["peak_torque_ratio"] <= 1.0 for r in mujoco)

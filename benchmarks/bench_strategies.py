@@ -90,7 +90,9 @@ def pipelines() -> dict[str, Controller]:
             ),
         ),
         "qp": Controller("q", [], QpBackend()),
-        "qp_manipulability": Controller("qm", [], ManipulabilityQpBackend()),
+        "qp_manipulability": Controller(
+            "qm", [], ManipulabilityQpBackend(manipulability_weight=1e-4)
+        ),
         "sigma_lm": Controller("l", [], SigmaLevenbergMarquardtBackend()),
         "otmm-directional+sigma_lm": Controller(
             "dl", [DirectionAwareOtmmFilter(0.05)], SigmaLevenbergMarquardtBackend()

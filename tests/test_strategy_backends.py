@@ -174,7 +174,7 @@ def test_sns_greedy_scale_is_strictly_below_the_best_feasible_one() -> None:
 
 
 def test_sns_greedy_gap_over_random_redundant_cases() -> None:
-    """How often and by how much the greedy scale falls short (the numbers in sns.py)."""
+    """How often and by how much the greedy scale falls short (the numbers in sns.py, docs)."""
     ratios = []
     for seed in range(300):
         rng = np.random.default_rng(seed)
@@ -191,8 +191,9 @@ def test_sns_greedy_gap_over_random_redundant_cases() -> None:
         assert scale <= optimum + 1e-9
         ratios.append(scale / optimum if optimum > 0.0 else 1.0)
     ratio = np.array(ratios)
-    assert ratio.min() >= 0.95  # never far below ...
-    assert np.mean(ratio < 1.0 - 1e-6) < 0.05  # ... and rarely below at all
+    assert ratio.size == 300
+    assert ratio.min() >= 0.99  # never far below (measured: 0.991) ...
+    assert 1 <= np.count_nonzero(ratio < 1.0 - 1e-6) <= 5  # ... and rarely below (measured: 2)
 
 
 def test_sns_uses_redundancy_before_scaling() -> None:

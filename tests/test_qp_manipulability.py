@@ -74,7 +74,8 @@ def test_limits_hold_and_the_manipulability_rate_grows_with_the_weight(
 
 def test_in_a_run_it_keeps_the_arm_more_manipulable_on_average() -> None:
     from otmm_qp.controller import Controller
-    from otmm_qp.simulation import Episode, Loop, simulate
+    from otmm_qp.simulation.episode import Episode, Loop
+    from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
     robot = arm()

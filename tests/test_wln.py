@@ -117,7 +117,8 @@ def test_a_joint_on_its_limit_does_not_move_and_without_limits_it_is_the_pseudoi
 
 def test_in_a_run_it_keeps_joints_off_their_limits_where_the_pseudoinverse_hits_them() -> None:
     from otmm_qp.controller import Controller
-    from otmm_qp.simulation import Episode, Loop, simulate
+    from otmm_qp.simulation.episode import Episode, Loop
+    from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
     from otmm_qp_controllers.pinv import PseudoInverseBackend
 
@@ -144,7 +145,8 @@ def test_bad_damping_names_the_field() -> None:
 def test_undamped_wln_diverges_when_the_weighting_makes_the_task_singular() -> None:
     """The paper's WLN has no damping: a target that needs a joint past its limit shows why."""
     from otmm_qp.controller import Controller
-    from otmm_qp.simulation import Episode, Loop, simulate
+    from otmm_qp.simulation.episode import Episode, Loop
+    from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
     arm = PlanarArm([1.0, 0.8, 0.6], limits=[[-3.0, 3.0], [-0.3, 1.6], [-3.0, 3.0]])

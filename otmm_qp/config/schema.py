@@ -36,6 +36,7 @@ from pydantic import Field, field_validator, model_validator
 from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.output.paths import RESERVED_NAMES, safe_name
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.simulation.loop_modes import LoopMode
 
 __all__ = [
@@ -63,7 +64,7 @@ def check_file_name(kind: str, name: str) -> str:
 class MetricsConfig(Strict):
     """Metric parameters: σ_S for counting, window width [s], blow-up speed [rad/s]."""
 
-    sigma_s: float = Field(0.05, gt=0.0)
+    sigma_s: float = Field(SIGMA_S, gt=0.0)
     window: float = Field(1.0, gt=0.0)
     blow_up_speed: float = Field(100.0, gt=0.0)
 

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.metrics.table import METRICS
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.status import DIVERGENCE_SPEED, Status
 
@@ -55,7 +56,7 @@ class MetricSettings:
         blow_up_speed: Joint speed above which a run counts as blown up [rad/s].
     """
 
-    sigma_s: float = 0.05
+    sigma_s: float = SIGMA_S
     window: float = 1.0
     blow_up_speed: float = DIVERGENCE_SPEED
 

@@ -21,7 +21,9 @@ from pydantic import ValidationError
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig, PluginSpec
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
+from otmm_qp.studies.oracle import OFFLINE, ORACLE
 from otmm_qp.studies.schema import StudyConfig, StudyController
+from otmm_qp.studies.task_ids import check_entries, seed_name
 from otmm_qp.tasks.generator import TaskGenerationError, task_seed
 
 
@@ -162,7 +164,11 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class Episode:
-    """One episode: indices into the study's robots, generators, controllers and loop modes."""
+    """One episode: indices into the study's robots, generators, controllers and loop modes.
+
+    The task's offline-optimal reference is an episode too, with ``controller = ORACLE``
+    (−1) and ``loop_mode = "offline"``.
+    """
 
     key: str
     robot: int
@@ -216,7 +222,7 @@ def episode_key(
     record = {
         "robot": robot_spec.model_dump(mode="json"),
         "generator": {"type": gen.type, "params": gen.params},
-        "seed": task_seed(config.seed, robot_spec.name, gen.type, index),
+        "seed": task_seed(config.seed, robot_spec.name, seed_name(config, generator), index),
         "task_index": index,
         "controller": controller,
         "loop_mode": loop_mode,
@@ -224,6 +230,24 @@ def episode_key(
         "clik_gain": config.clik_gain,
         "duration": config.duration.model_dump(mode="json"),
         "metrics": config.metrics.model_dump(mode="json"),
+    }
+    return _digest(record)
+
+
+def oracle_key(config: StudyConfig, robot: int, generator: int, index: int, seed: int) -> str:
+    """Key of a task's reference episode: the task, the numerics and what it solves for."""
+    gen = config.generators[generator]
+    record = {
+        "robot": config.robots[robot].model_dump(mode="json"),
+        "generator": {"type": gen.type, "params": gen.params},
+        "seed": seed,
+        "task_index": index,
+        "controller": "oracle",
+        "dt": config.dt,
+        "duration": config.duration.model_dump(mode="json"),
+        "metrics": config.metrics.model_dump(mode="json"),
+        "success": config.success.model_dump(mode="json"),
+        "reference": config.reference.model_dump(mode="json"),
     }
     return _digest(record)
 
@@ -259,7 +283,7 @@ def check_plugins(
         weight = np.asarray(robot_spec.task_weight, dtype=float) if robot_spec.task_weight else None
         for j, gen in enumerate(config.generators):
             generator = registry.create(registry.TASK_GENERATORS, gen.type, gen.params, "")
-            seed = task_seed(config.seed, robot_spec.name, gen.type, 0)
+            seed = task_seed(config.seed, robot_spec.name, seed_name(config, j), 0)
             try:  # the first task: a generator that cannot work on this robot fails here
                 generator.generate(robot, seed, weight)
             except TaskGenerationError as error:
@@ -279,6 +303,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     Raises:
         ConfigError: Any bad input, one line naming the field.
     """
+    check_entries(config, source)
     controllers = expand_controllers(config, source)
     skipped = check_plugins(config, controllers, source)
     skipped_names = {name for name, _ in skipped}
@@ -290,7 +315,10 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     for r, robot in enumerate(config.robots):
         for g, gen in enumerate(config.generators):
             for index in range(gen.count):
-                seed = task_seed(config.seed, robot.name, gen.type, index)
+                seed = task_seed(config.seed, robot.name, seed_name(config, g), index)
+                if config.reference.enabled:  # once per task, before its controllers
+                    key = oracle_key(config, r, g, index, seed)
+                    episodes.append(Episode(key, r, g, index, seed, ORACLE, OFFLINE))
                 for c, record in enumerate(records):
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)

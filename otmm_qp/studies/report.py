@@ -7,9 +7,9 @@ Every number in them is computed here from the stored rows.
 
 from __future__ import annotations
 
-import html
 import io
 import math
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.episodes import is_success
 from otmm_qp.studies.schema import StudyConfig
@@ -29,7 +30,7 @@ from otmm_qp.studies.statistics import (
     rank_with_ties,
     wilson_interval,
 )
-from otmm_qp.studies.storage import read_episodes, read_marker
+from otmm_qp.studies.storage import read_study_folder
 
 #: Metrics summarised by median + bootstrap interval: (column, label, unit).
 MEDIAN_METRICS: tuple[tuple[str, str, str], ...] = (
@@ -85,19 +86,20 @@ def _interval(value: float, low: float, high: float) -> str:
 
 
 def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config (from ``study.json``) and its rows.
+    """The study config (from ``study.json``) and the rows of this study and plan.
+
+    What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
+    stderr, one line per reason.
 
     Raises:
-        OtmmError: No study marker or no episodes in ``out``.
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
     """
-    marker = read_marker(out)
-    if marker is None:
-        raise OtmmError(f"{out}: no {'study.json'} here; not a study directory")
-    config = StudyConfig.model_validate(marker["config"])
-    table = read_episodes(out)
-    if table is None or table.num_rows == 0:
+    config, data = read_study_folder(out)
+    for line in data.ignored:
+        print(f"otmm-qp: report ignored {line}", file=sys.stderr)
+    if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = table.to_pylist()
+    rows = data.table.to_pylist()
     for row in rows:
         row["success"] = row.get("status") != "error" and is_success(row, config.success)
     return config, Rows(rows)
@@ -460,10 +462,12 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     body = markdown_to_html(
         "\n".join(line for line in markdown.splitlines() if not line.startswith("!["))
     )
-    images = "".join(f'<p><img src="{html.escape(f)}" alt="{html.escape(f)}"></p>' for f in figures)
+    images = "".join(
+        f'<p><img src="{escape(f, "attr")}" alt="{escape(f, "attr")}"></p>' for f in figures
+    )
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
-        f"<title>Study {html.escape(config.name)}</title>"
+        f"<title>Study {escape(config.name)}</title>"
         "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
         "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 5px}"
         "img{max-width:100%}</style></head><body>"

@@ -75,7 +75,7 @@ def test_fk_of_a_joint_path_inside_the_limits_is_certified(seed: int) -> None:
     settings_ = ReferenceSettings(position_tolerance=0.01, speed_limit=10.0)
     result, _ = solve_reference(robot, trajectory, nodes[0], DT, 2.2, settings_)
     assert result.status == "feasible" and result.achievable
-    assert result.max_error < 1e-3 * 0.01 + 1e-9
+    assert result.max_error <= 1e-2 * 0.01  # settles at 1 % of the tolerance
     check_within_limits(robot, result, 10.0)
 
 
@@ -89,7 +89,7 @@ def test_ur5_pose_fk_of_a_joint_path_is_certified(ur5_pose: Robot) -> None:
     weight = np.array([1.0, 1.0, 1.0, 0.2, 0.2, 0.2])
     result, _ = solve_reference(ur5_pose, trajectory, q0, DT, 2.0, settings_, weight)
     assert result.status == "feasible"
-    assert result.max_error < 2e-5 and result.max_orientation_error < 1e-4
+    assert result.max_error <= 2e-4 and result.max_orientation_error <= 1e-3
     check_within_limits(ur5_pose, result, 3.0)
 
 

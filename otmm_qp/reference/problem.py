@@ -16,6 +16,9 @@ from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.trajectory import Trajectory
 
+#: Scaled residual ‖S e_k‖ below which the curvature term is left out (it is proportional to
+#: the residual, so Gauss–Newton is as good there and saves ``nv`` Jacobian derivatives).
+CURVATURE_RESIDUAL = 0.05
 #: Stand-in for an infinite bound in the QP (OSQP treats ≥ 1e30 as infinite).
 BIG = 1e20
 
@@ -118,9 +121,10 @@ class TrackingProblem:
                           S^2 e_k\; \mathbf e_j^\top
 
         (``J̃ = S J``); the second, curvature term is what makes the solve converge at the
-        workspace boundary, where ``J̃ᵀJ̃`` loses rank. It uses ``Robot.jacobian_derivative``
-        (exact for Pinocchio arms; for the pose error it ignores the derivative of
-        ``log₃``, so it is Gauss–Newton-accurate there).
+        workspace boundary, where ``J̃ᵀJ̃`` loses rank. It is proportional to the residual and
+        left out where ``‖S e_k‖ ≤`` :data:`CURVATURE_RESIDUAL`. It uses
+        ``Robot.jacobian_derivative`` (exact for Pinocchio arms; for the pose error it ignores
+        the derivative of ``log₃``, so it is Gauss–Newton-accurate there).
 
         Returns:
             ``(errors (N, n), gradients (N−1, nv), hessians (N−1, nv, nv))``; the
@@ -142,10 +146,11 @@ class TrackingProblem:
                 continue
             scaled = self.scale[:, None] * jacobian
             gradients[k - 1] = -scaled.T @ (self.scale * error)
-            pull = square * error
-            curvature = np.column_stack(
-                [robot.jacobian_derivative(configuration, unit[j]).T @ pull for j in range(nv)]
-            )
-            block = scaled.T @ scaled - curvature
+            block = scaled.T @ scaled
+            if float(np.linalg.norm(self.scale * error)) > CURVATURE_RESIDUAL:
+                pull = square * error
+                block = block - np.column_stack(
+                    [robot.jacobian_derivative(configuration, unit[j]).T @ pull for j in range(nv)]
+                )
             hessians[k - 1] = 0.5 * (block + block.T)
         return errors, gradients, hessians

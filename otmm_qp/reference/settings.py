@@ -39,7 +39,7 @@ class ReferenceSettings:
     speed_limit: float | None = None
     sigma_s: float = 0.05
     time_budget: float = 30.0
-    iterations: int = 8
+    iterations: int = 6
     minimax_rounds: int = 1
 
     def __post_init__(self) -> None:

@@ -13,7 +13,7 @@ within every limit:
    (:func:`~otmm_qp.reference.warm_start.damped_ik_path`).
 2. **Least squares**: trust-region Newton over the stacked ``½‖S e_k‖²`` with sequential
    QPs (:class:`~otmm_qp.reference.sqp.SequentialQP`), until it converges or every error
-   is below ``SETTLE`` = 0.1 % of its tolerance. Where the limits do not bind, the
+   is below ``SETTLE`` = 1 % of its tolerance. Where the limits do not bind, the
    samples decouple and this is each sample's own best, so also the min-max.
 3. **Min-max** (only if (2) misses a tolerance): Lawson re-weighting
    ``ω_k ← ω_k m_k / mean(ω m)``, a few Newton steps per round, which moves the
@@ -44,7 +44,7 @@ from otmm_qp.trajectories.trajectory import Trajectory
 ROUND_ITERATIONS = 2
 #: The least-squares phase stops once every error is below this fraction of its tolerance
 #: (a certificate with margin; finer digits would not change any verdict).
-SETTLE = 1e-3
+SETTLE = 1e-2
 #: Smallest Lawson weight (relative to the mean), so no sample is dropped for good.
 WEIGHT_FLOOR = 1e-6
 

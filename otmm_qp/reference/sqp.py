@@ -37,7 +37,7 @@ EIGEN_FLOOR = 1e-9
 RELATIVE_DECREASE = 1e-7
 ABSOLUTE_DECREASE = 1e-12
 #: Iterations allowed once a path meets every tolerance (it only sharpens the errors).
-AFTER_CERTIFICATE = 2
+AFTER_CERTIFICATE = 1
 #: Initial and smallest trust radius [rad].
 INITIAL_RADIUS = 0.3
 MIN_RADIUS = 1e-9
@@ -47,7 +47,7 @@ OSQP_SETTINGS = {
     "verbose": False,
     "eps_abs": 1e-4,
     "eps_rel": 1e-4,
-    "max_iter": 250,
+    "max_iter": 100,
     "polishing": False,
     "warm_starting": True,
 }

@@ -135,7 +135,7 @@ class ReferenceConfig(_Strict):
     enabled: bool = True
     time_budget: float = Field(20.0, gt=0.0, allow_inf_nan=False)
     speed_bound: Literal["criteria", "robot"] = "criteria"
-    iterations: int = Field(8, ge=0)
+    iterations: int = Field(6, ge=0)
     minimax_rounds: int = Field(1, ge=0)
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -76,7 +76,6 @@ class ReferenceResult:
     merit: float
     seconds: float = 0.0
     message: str | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def achievable(self) -> bool:

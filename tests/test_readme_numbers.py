@@ -45,7 +45,7 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
 
 
 def _check_reference_sentence(out: Path) -> None:
-    """"the reference certifies N of the M tasks" and who solves exactly those."""
+    """The README sentence "the reference certifies N of the M tasks", and who solves those."""
     from otmm_qp.studies.storage import read_episodes
 
     text = (ROOT / "README.md").read_text(encoding="utf-8")

@@ -247,3 +247,19 @@ def ur5_pose() -> Robot:
         registry.ROBOTS, "pinocchio", {"name": "ur5", "task": "pose"}, "r"
     )
     return robot
+
+
+def test_a_joint_path_task_starts_from_its_own_joint_path() -> None:
+    """The trajectory's joint path (within the limits) is a zero-error start."""
+    from otmm_qp.reference.warm_start import joint_path_start
+
+    robot = PlanarArm([1.0, 0.8, 0.5], velocity_limits=[3.0, 3.0, 3.0])
+    nodes = [np.array([0.1, 0.9, -0.4]), np.array([1.1, -0.6, 0.8])]
+    trajectory = JointWaypointsTrajectory(robot.forward(nodes[0]), robot, nodes, duration=1.5)
+    problem = TrackingProblem(robot, trajectory, nodes[0], DT, 1.7, ReferenceSettings())
+    start = joint_path_start(problem, trajectory)
+    assert start is not None
+    assert np.max(np.linalg.norm(problem.errors(start), axis=1)) < 1e-12
+    assert joint_path_start(problem, Hold(np.zeros(2), 1.0)) is None
+    result, _ = solve_reference(robot, trajectory, nodes[0], DT, 1.7)
+    assert result.status == "feasible" and result.warm_start_merit < 1e-9

@@ -10,7 +10,9 @@ The solver sees the whole desired path ``x_d(t_k)``, ``k = 0..N−1``, and looks
 within every limit:
 
 1. **Warm start**: per-sample damped IK, rate-limited and clipped
-   (:func:`~otmm_qp.reference.warm_start.damped_ik_path`).
+   (:func:`~otmm_qp.reference.warm_start.damped_ik_path`), or the trajectory's own joint
+   path when it has one and it is better
+   (:func:`~otmm_qp.reference.warm_start.joint_path_start`).
 2. **Least squares**: trust-region Newton over the stacked ``½‖S e_k‖²`` with sequential
    QPs (:class:`~otmm_qp.reference.sqp.SequentialQP`), until it converges or every error
    is below ``SETTLE`` = 1 % of its tolerance. Where the limits do not bind, the
@@ -36,7 +38,7 @@ from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import ReferenceResult, ReferenceStatus, summarise
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
-from otmm_qp.reference.warm_start import damped_ik_path
+from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.trajectory import Trajectory
 
@@ -84,6 +86,11 @@ def solve_reference(
     deadline = tic + settings.time_budget
     warm = damped_ik_path(problem)
     warm_merit = float(np.max(problem.merits(problem.errors(warm))))
+    given = joint_path_start(problem, trajectory)
+    if given is not None:
+        given_merit = float(np.max(problem.merits(problem.errors(given))))
+        if given_merit < warm_merit:
+            warm, warm_merit = given, given_merit
     best, best_merit = warm, warm_merit
     message: str | None = None
     if problem.samples > 1:

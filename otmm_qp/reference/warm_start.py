@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from otmm_qp.reference.problem import TrackingProblem
+from otmm_qp.reference.projection import project_path
 from otmm_qp.robots.robot import FloatArray
 
 #: Damped Newton iterations per sample.
@@ -45,3 +46,23 @@ def damped_ik_path(problem: TrackingProblem) -> FloatArray:
         step = np.clip(q - path[k - 1], -problem.step, problem.step)
         path[k] = np.clip(path[k - 1] + step, problem.lower, problem.upper)
     return path
+
+
+def joint_path_start(problem: TrackingProblem, trajectory: object) -> FloatArray | None:
+    r"""The trajectory's own joint path, when it has one, projected onto the limits.
+
+    A task built from a joint path (``joint_path``, ``random_reachable``: a
+    :class:`~otmm_qp.trajectories.waypoints.JointWaypointsTrajectory`) is tracked exactly by
+    ``q(t_k)``; starting there, the solver cannot miss that path for another IK branch.
+
+    Returns:
+        Joint path ``(N, nv)``, or None when the trajectory has no ``joint_sample``.
+    """
+    sample = getattr(trajectory, "joint_sample", None)
+    if sample is None:
+        return None
+    path = np.array([np.asarray(sample(float(t))[0], dtype=float) for t in problem.times])
+    if path.shape != (problem.samples, problem.nv) or not np.all(np.isfinite(path)):
+        return None
+    path[0] = problem.q0
+    return project_path(path, problem.lower, problem.upper, problem.step)

@@ -132,6 +132,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_strategies.py",
         "bench_study.py",
         "bench_reference.py",
+        "bench_plant.py",  # test_plant_runs.py
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

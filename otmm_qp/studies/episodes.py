@@ -23,6 +23,7 @@ from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.oracle import ORACLE, failed_columns, oracle_columns, oracle_fields
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
+from otmm_qp.studies.spec import plant_name
 from otmm_qp.studies.task_ids import entry_label, task_id
 from otmm_qp.tasks.generator import Task, TaskGenerator
 
@@ -157,6 +158,7 @@ def _base_row(
                 "backend": spec.backend.type,
                 "controller_params": json.dumps(params, sort_keys=True, default=str),
                 "loop_mode": mode,
+                **({"plant": plant_name(spec)} if config.plants is not None else {}),
             }
         )
     row["dt"] = config.dt
@@ -228,6 +230,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     """Generate the unit's task and run its episodes, appending rows (never raising)."""
     from otmm_qp.runner.build import build_controller
     from otmm_qp.runner.episode import run_episode
+    from otmm_qp.runner.plant_stage import build_stage
 
     config, controllers = _study(payload)
     settings = MetricSettings(**config.metrics.model_dump())
@@ -251,7 +254,9 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
-            record = run_episode(study_episode(config, robot, task, weight, mode), built, settings)
+            stage = build_stage(controllers[controller])
+            episode = study_episode(config, robot, task, weight, mode)
+            record = run_episode(episode, built, settings, stage)
         except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
             row.update(status="error", error_message=one_line(error), success=False)
             result.rows.append(row)

@@ -450,7 +450,7 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     Raises:
         OtmmError: ``out`` is not a study directory or holds no episodes.
     """
-    from otmm_qp.output.report import markdown_to_html
+    from otmm_qp.output.markdown import markdown_to_html
 
     out = Path(out)
     config, rows = load_rows(out)

@@ -122,7 +122,8 @@ def test_bench_strategies_runs_tiny() -> None:
 
 
 def test_every_benchmark_script_and_example_is_tested() -> None:
-    # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py.
+    # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py;
+    # bench_reference: test_studies_oracle.py.
     scripts = {p.name for p in (ROOT / "benchmarks").glob("*.py")}
     assert scripts <= {
         "bench_step.py",
@@ -130,6 +131,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_qp_session.py",
         "bench_strategies.py",
         "bench_study.py",
+        "bench_reference.py",
         "bench_plant.py",  # test_plant_runs.py
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}

@@ -10,7 +10,8 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
 from otmm_qp.tasks.generator import TaskGenerationError, task_seed
-from otmm_qp.tasks.search import descend_sigma_min, position_of, sigma_min_at
+from otmm_qp.tasks.reach import true_reach
+from otmm_qp.tasks.search import base_position, descend_sigma_min, position_of, sigma_min_at
 from otmm_qp.tasks.singular import SingularSearch
 
 GENERATORS = ("near_singular", "joint_path", "beyond_reach", "boundary", "random_reachable")
@@ -103,7 +104,9 @@ def test_beyond_reach_target_is_unreachable_and_returns(ur5: Robot) -> None:
     generator = registry.create(registry.TASK_GENERATORS, "beyond_reach", {}, "g")
     task = generator.generate(ur5, 5)
     half = task.trajectory.position(task.duration / 2.0)
-    assert not ur5.can_reach(half)
+    distance = float(np.linalg.norm(half[:3, 3] - base_position(ur5)))
+    assert distance == pytest.approx(float(task.descriptors["target_distance"]))
+    assert distance > true_reach(ur5) * 1.02 - 1e-9  # past the true reach by the overshoot
     assert np.allclose(task.trajectory.position(task.duration), task.trajectory.position(0.0))
 
 

@@ -41,3 +41,24 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
         for value in (max_error, peak, jump):
             # The README shows the median; the report adds its bootstrap interval after it.
             assert re.search(rf"\| {re.escape(value)} \[", line), (controller, value, line)
+    _check_reference_sentence(out)
+
+
+def _check_reference_sentence(out: Path) -> None:
+    """The README sentence "the reference certifies N of the M tasks", and who solves those."""
+    from otmm_qp.studies.storage import read_episodes
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    found = re.search(r"the reference certifies (\d+)\s+of the (\d+) tasks", text)
+    assert found is not None
+    table = read_episodes(out)
+    assert table is not None
+    rows = table.to_pylist()
+    oracle = {r["task_id"]: r for r in rows if r["controller"] == "oracle"}
+    feasible = {t for t, r in oracle.items() if r["reference.status"] == "feasible"}
+    assert (len(feasible), len(oracle)) == (int(found.group(1)), int(found.group(2)))
+    others = {oracle[t]["generator"] for t in set(oracle) - feasible}
+    assert others <= {"beyond_reach", "near_singular"}
+    for name in ("dls", "qp", "OTMM+pinv[sigma_s=0.02]", "OTMM+pinv[sigma_s=0.05]"):
+        solved = {r["task_id"] for r in rows if r["controller"] == name and r["success"]}
+        assert solved == feasible, name

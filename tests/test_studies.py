@@ -71,7 +71,7 @@ def serial_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("serial")
     plan = plan_study(parse_study(TINY))
     outcome = run_study(plan, out, "tiny", workers=1)
-    assert outcome.ran == len(plan.episodes) == 5 * 3
+    assert outcome.ran == len(plan.episodes) == 5 * (3 + 1)  # + one oracle row per task
     return out
 
 
@@ -84,7 +84,7 @@ def test_grid_expands_to_named_controllers() -> None:
 
 def test_serial_rows_are_complete(serial_out: Path) -> None:
     rows = _rows(serial_out)
-    assert len(rows) == 15
+    assert len(rows) == 20
     row = next(iter(rows.values()))
     assert {"max_error", "max_joint_speed", "status_ok", "task_seed", "controller_params"} <= set(
         row
@@ -117,10 +117,10 @@ def test_resume_after_interrupt_adds_only_missing(serial_out: Path, tmp_path: Pa
         raise KeyboardInterrupt
 
     first = run_study(plan, tmp_path, "tiny", workers=1, progress=stop_after_first_chunk)
-    assert first.interrupted and 0 < first.ran < 15
+    assert first.interrupted and 0 < first.ran < 20
     assert len(_rows(tmp_path)) == first.ran  # readable after the interrupt
     second = run_study(plan, tmp_path, "tiny", workers=1)
-    assert second.skipped_stored == first.ran and second.ran == 15 - first.ran
+    assert second.skipped_stored == first.ran and second.ran == 20 - first.ran
     assert _rows(tmp_path) == _rows(serial_out)
     third = run_study(plan, tmp_path, "tiny", workers=1)
     assert third.ran == 0
@@ -133,7 +133,7 @@ def test_cli_study_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]
         main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1", "--quiet"]) == 0
     )
     out = capsys.readouterr().out
-    assert "6 episodes run (0 failed)" in out
+    assert "8 episodes run (0 failed)" in out  # 2 tasks x (3 controllers + the oracle)
     report = (tmp_path / "out" / "study_report.md").read_text()
     assert "Wilcoxon" in report and "success" in report
     assert (tmp_path / "out" / "figures" / "pareto-planar2.png").is_file()
@@ -211,7 +211,7 @@ def test_other_study_directory_is_refused_unless_forced(
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "holds study 'tiny'" in err and err.count("\n") == 1
-    assert len(_rows(target)) == 15  # nothing lost
+    assert len(_rows(target)) == 20  # nothing lost
     assert main([*args, "--force"]) == 0
     assert {r["study"] for r in _rows(target).values()} == {"other"}
 
@@ -332,7 +332,7 @@ def test_external_scheduler_with_a_worker_killed_midway(tmp_path: Path) -> None:
         assert driver.returncode == 0, stderr.decode()
         assert killed_midway
         rows = _rows(out)  # asserts each key stored once
-        assert len(rows) == 16 * 3
+        assert len(rows) == 16 * (3 + 1)  # + one oracle row per task
         assert set(rows) == {e.key for e in plan_study(parse_study(study)).episodes}
     finally:
         for process in processes:

@@ -43,7 +43,7 @@ def test_arms_study_has_two_thousand_tasks_and_eight_controllers() -> None:
 
 def test_planar_study_is_valid() -> None:
     plan = plan_study(load_study(STUDIES / "planar.yaml"), "planar.yaml")
-    assert len(plan.episodes) == 300
+    assert len(plan.episodes) == 60 * (5 + 1)  # 60 tasks x (5 controllers + the oracle)
 
 
 def test_bench_study_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -186,6 +186,7 @@ def test_study_stores_every_episode_and_exits_2(
         "name": "bad",
         "dt": 0.05,
         "duration": {"extra": 0.2},
+        "reference": {"enabled": False},  # counts the controllers' episodes only
         "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
         "generators": [{"type": "near_singular", "count": 2, "duration": [1.0, 1.5]}],
         "controllers": [

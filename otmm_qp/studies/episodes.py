@@ -21,12 +21,14 @@ from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.studies.oracle import ORACLE, failed_columns, oracle_columns, oracle_fields
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.spec import plant_name
+from otmm_qp.studies.task_ids import entry_label, task_id
 from otmm_qp.tasks.generator import Task, TaskGenerator
 
 #: Metrics that measure wall-clock time: they differ between runs and executors.
-TIMING_METRICS = ("step_time_median_us", "step_time_p99_us")
+TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")
 
 _configs: dict[str, tuple[StudyConfig, list[ControllerConfig]]] = {}
 _robots: dict[str, Robot] = {}
@@ -129,28 +131,38 @@ def _base_row(
     controller: int,
     mode: str,
 ) -> dict[str, Any]:
-    spec = controllers[controller]
     gen = config.generators[unit.generator]
-    params = {
-        **{f"{f.type}.{k}": v for f in spec.filters for k, v in f.params.items()},
-        **{f"{spec.backend.type}.{k}": v for k, v in spec.backend.params.items()},
-    }
-    return {
+    row: dict[str, Any] = {
         "study": config.name,
         "episode_key": key,
+        "task_id": task_id(config, unit.robot, unit.generator, unit.task_index),
         "robot": config.robots[unit.robot].name,
         "generator": gen.type,
+        "generator_entry": entry_label(config, unit.generator),
         "generator_params": json.dumps(gen.params, sort_keys=True, default=str),
         "task_index": unit.task_index,
         "task_seed": unit.seed,
-        "controller": spec.name,
-        "filters": "+".join(f.type for f in spec.filters) or "none",
-        "backend": spec.backend.type,
-        "controller_params": json.dumps(params, sort_keys=True, default=str),
-        "loop_mode": mode,
-        "dt": config.dt,
-        **({"plant": plant_name(spec)} if config.plants is not None else {}),
     }
+    if controller == ORACLE:
+        row.update(oracle_fields(config))
+    else:
+        spec = controllers[controller]
+        params = {
+            **{f"{f.type}.{k}": v for f in spec.filters for k, v in f.params.items()},
+            **{f"{spec.backend.type}.{k}": v for k, v in spec.backend.params.items()},
+        }
+        row.update(
+            {
+                "controller": spec.name,
+                "filters": "+".join(f.type for f in spec.filters) or "none",
+                "backend": spec.backend.type,
+                "controller_params": json.dumps(params, sort_keys=True, default=str),
+                "loop_mode": mode,
+                **({"plant": plant_name(spec)} if config.plants is not None else {}),
+            }
+        )
+    row["dt"] = config.dt
+    return row
 
 
 def _series(run: RunResult, key: str, stride: int) -> dict[str, Any]:
@@ -229,9 +241,15 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             row.update({f"task.{k}": v for k, v in task.descriptors.items()})
         if task is None or robot is None:
             row.update(status="error", error_message=task_error, success=False)
+            if controller == ORACLE:
+                row.update(failed_columns(str(task_error)), status="error")
             result.rows.append(row)
             continue
-        row["duration"] = _episode_duration(config, task)
+        duration = _episode_duration(config, task)
+        row["duration"] = duration
+        if controller == ORACLE:
+            result.rows.append(_oracle_row(config, row, robot, weight, task, duration))
+            continue
         try:
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
@@ -251,6 +269,24 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         result.rows.append(row)
         if unit.time_series:
             result.series.append(_series(run, key, config.time_series.stride))
+
+
+def _oracle_row(
+    config: StudyConfig,
+    row: dict[str, Any],
+    robot: Robot,
+    weight: FloatArray | None,
+    task: Task,
+    duration: float,
+) -> dict[str, Any]:
+    """The task's reference row (never raising: an unexpected error is a ``failed`` row)."""
+    try:
+        row.update(oracle_columns(config, robot, weight, task, duration))
+    except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
+        row.update(failed_columns(f"reference: {one_line(error)}"), success=False)
+        return row
+    row["success"] = is_success(row, config.success)
+    return row
 
 
 def run_chunk(payload: dict[str, Any], units: list[WorkUnit]) -> ChunkResult:

@@ -35,7 +35,7 @@ it) or an explicit ``backend.NAME`` / ``filters.INDEX.NAME``.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -53,16 +53,21 @@ class StudyRobot(Strict):
 
 
 class GeneratorSpec(BaseModel):
-    """``{type: NAME, count: N, **params}``: a registered task generator, N tasks per robot."""
+    """``{type: NAME, count: N, name: LABEL, **params}``: a task generator, N tasks per robot.
+
+    ``name`` (optional) labels the entry in ``task_id`` and seeds its tasks, so two entries
+    of one type (e.g. two distance ranges) give different tasks and are counted apart.
+    """
 
     model_config = ConfigDict(extra="allow", frozen=True)
 
     type: str = Field(min_length=1)
     count: int = Field(gt=0)
+    name: str | None = Field(None, min_length=1, pattern=r"^[A-Za-z0-9_.+#-]+$")
 
     @property
     def params(self) -> dict[str, Any]:
-        """Generator parameters (everything but ``type`` and ``count``)."""
+        """Generator parameters (everything but ``type``, ``count`` and ``name``)."""
         return dict(self.model_extra or {})
 
 
@@ -114,6 +119,26 @@ class TimeSeriesConfig(Strict):
     stride: int = Field(5, gt=0)
 
 
+class ReferenceConfig(Strict):
+    """The offline-optimal reference computed once per task (an ``oracle`` row).
+
+    Attributes:
+        enabled: Compute it.
+        time_budget: Wall-clock budget per task [s]; past it the reference is ``failed``.
+        speed_bound: ``criteria``: joint speeds within the robot's limits *and* the
+            success criterion ``max_joint_speed`` (a certificate then means a controller could
+            succeed); ``robot``: within the robot's limits only.
+        iterations: Newton iterations of the least-squares phase.
+        minimax_rounds: Min-max re-weighting rounds (only when a tolerance is missed).
+    """
+
+    enabled: bool = True
+    time_budget: float = Field(20.0, gt=0.0, allow_inf_nan=False)
+    speed_bound: Literal["criteria", "robot"] = "criteria"
+    iterations: int = Field(6, ge=0)
+    minimax_rounds: int = Field(1, ge=0)
+
+
 #: Generator parameters that set how much work one task may take (each bounded by
 #: ``limits.max_generator_budget``).
 GENERATOR_BUDGETS = ("attempts", "restarts", "iterations")
@@ -149,6 +174,7 @@ class StudyConfig(LoopSettings):
     metrics: MetricsConfig = MetricsConfig()
     success: SuccessCriteria = SuccessCriteria()
     time_series: TimeSeriesConfig = TimeSeriesConfig()
+    reference: ReferenceConfig = ReferenceConfig()
     limits: PlanLimits = PlanLimits()
     robots: list[StudyRobot] = Field(min_length=1)
     generators: list[GeneratorSpec] = Field(min_length=1)

@@ -21,7 +21,9 @@ from otmm_qp.config.base import PluginSpec
 from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
+from otmm_qp.studies.oracle import OFFLINE, ORACLE
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
+from otmm_qp.studies.task_ids import check_entries, seed_name
 from otmm_qp.tasks.generator import TaskGenerationError, task_seed
 
 
@@ -222,7 +224,11 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class Episode:
-    """One episode: indices into the study's robots, generators, controllers and loop modes."""
+    """One episode: indices into the study's robots, generators, controllers and loop modes.
+
+    The task's offline-optimal reference is an episode too, with ``controller = ORACLE``
+    (−1) and ``loop_mode = "offline"``.
+    """
 
     key: str
     robot: int
@@ -276,7 +282,7 @@ def episode_key(
     record = {
         "robot": robot_spec.model_dump(mode="json"),
         "generator": {"type": gen.type, "params": gen.params},
-        "seed": task_seed(config.seed, robot_spec.name, gen.type, index),
+        "seed": task_seed(config.seed, robot_spec.name, seed_name(config, generator), index),
         "task_index": index,
         "controller": controller,
         "loop_mode": loop_mode,
@@ -284,6 +290,24 @@ def episode_key(
         "clik_gain": config.clik_gain,
         "duration": config.duration.model_dump(mode="json"),
         "metrics": config.metrics.model_dump(mode="json"),
+    }
+    return _digest(record)
+
+
+def oracle_key(config: StudyConfig, robot: int, generator: int, index: int, seed: int) -> str:
+    """Key of a task's reference episode: the task, the numerics and what it solves for."""
+    gen = config.generators[generator]
+    record = {
+        "robot": config.robots[robot].model_dump(mode="json"),
+        "generator": {"type": gen.type, "params": gen.params},
+        "seed": seed,
+        "task_index": index,
+        "controller": "oracle",
+        "dt": config.dt,
+        "duration": config.duration.model_dump(mode="json"),
+        "metrics": config.metrics.model_dump(mode="json"),
+        "success": config.success.model_dump(mode="json"),
+        "reference": config.reference.model_dump(mode="json"),
     }
     return _digest(record)
 
@@ -387,7 +411,7 @@ def _first_task(
 ) -> Any:
     """The generator's first task on ``robot``; a generator that cannot work on it is refused."""
     gen = config.generators[index]
-    seed = task_seed(config.seed, robot_name, gen.type, 0)
+    seed = task_seed(config.seed, robot_name, seed_name(config, index), 0)
     try:
         return generator.generate(robot, seed, weight)
     except TaskGenerationError as error:
@@ -401,6 +425,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
         ConfigError: Any bad input, one line naming the field.
     """
     check_plan_size(config, source)
+    check_entries(config, source)
     controllers = expand_controllers(config, source)
     skipped = check_plugins(config, controllers, source)
     skipped_names = {name for name, _ in skipped}
@@ -412,7 +437,10 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     for r, robot in enumerate(config.robots):
         for g, gen in enumerate(config.generators):
             for index in range(gen.count):
-                seed = task_seed(config.seed, robot.name, gen.type, index)
+                seed = task_seed(config.seed, robot.name, seed_name(config, g), index)
+                if config.reference.enabled:  # once per task, before its controllers
+                    key = oracle_key(config, r, g, index, seed)
+                    episodes.append(Episode(key, r, g, index, seed, ORACLE, OFFLINE))
                 for c, record in enumerate(records):
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)

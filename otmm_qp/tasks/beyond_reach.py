@@ -9,11 +9,11 @@ import numpy as np
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, check_range, draw
+from otmm_qp.tasks.reach import true_reach
 from otmm_qp.tasks.search import (
     base_position,
     position_of,
     random_coordinates,
-    reach_radius,
     sigma_min_at,
 )
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
@@ -22,11 +22,13 @@ from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 class BeyondReachGenerator(TaskGenerator):
     r"""From a random start ``p_0`` out to ``b + ρ R (p_0 − b)/‖p_0 − b‖`` and back.
 
-    ``b`` is the first joint's origin, ``R`` the robot's reach bound (no configuration gets
-    farther than ``R`` from ``b``) and ``ρ > 1`` the drawn overshoot, so the target is never
-    reachable. Pose tasks keep the start orientation.
+    ``b`` is the first joint's origin, ``R`` the robot's true reach computed from its model
+    (:func:`~otmm_qp.tasks.reach.true_reach`: the farthest the frame gets from ``b`` within
+    the joint limits, not a sum of link offsets) and ``ρ > 1`` the drawn overshoot, so the
+    target is out of reach by ``(ρ − 1)R``. Pose tasks keep the start orientation.
 
-    Descriptors: ``overshoot`` ρ, ``target_distance`` ``ρR`` [m], ``sigma_min_start``.
+    Descriptors: ``overshoot`` ρ, ``target_distance`` ``ρR`` [m], ``reach`` ``R`` [m],
+    ``sigma_min_start``.
 
     Args:
         overshoot: ``[low, high]`` of ρ (> 1).
@@ -55,7 +57,8 @@ class BeyondReachGenerator(TaskGenerator):
             outward = np.eye(p0.size)[0]
         outward /= np.linalg.norm(outward)
         rho = draw(rng, self.overshoot)
-        distance = rho * reach_radius(robot)
+        reach = true_reach(robot)
+        distance = rho * reach
         target = base + distance * outward
         trajectory = WaypointsTrajectory(
             start, [list(target)], duration=draw(rng, self.duration), return_to_start=True
@@ -63,6 +66,7 @@ class BeyondReachGenerator(TaskGenerator):
         descriptors: dict[str, float | int | str] = {
             "overshoot": rho,
             "target_distance": distance,
+            "reach": reach,
             "sigma_min_start": sigma_min_at(robot, q0, task_weight),
         }
         return Task(q0, trajectory, trajectory.duration, descriptors)

@@ -1,0 +1,133 @@
+"""The reference in studies: one ``oracle`` row per task, ``task_id`` everywhere, never rerun."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from otmm_qp.reference import REFERENCE_COLUMNS
+from otmm_qp.studies.execute import run_study
+from otmm_qp.studies.spec import parse_study, plan_study
+from otmm_qp.studies.storage import read_episodes
+
+STUDY = {
+    "name": "oracle",
+    "seed": 4,
+    "dt": 0.05,
+    "duration": {"extra": 0.2},
+    "chunk_size": 2,
+    "time_series": {"tasks": 0},
+    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
+    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
+    "generators": [
+        {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
+        {"type": "random_reachable", "count": 2, "duration": [1.0, 1.5]},
+        {"type": "random_reachable", "count": 1, "duration": [1.0, 1.5], "name": "slow"},
+    ],
+    "controllers": [
+        {"name": "qp", "backend": {"type": "qp", "solver": "daqp"}},
+        {"name": "dls", "backend": {"type": "dls"}, "grid": {"damping": [0.02, 0.05]}},
+    ],
+}
+
+
+def _rows(out: Path) -> list[dict]:
+    table = read_episodes(out)
+    assert table is not None
+    return table.to_pylist()
+
+
+@pytest.fixture(scope="module")
+def study_out(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("oracle")
+    plan = plan_study(parse_study(STUDY))
+    outcome = run_study(plan, out, "oracle.yaml", workers=1)
+    assert outcome.ran == len(plan.episodes) == 5 * (3 + 1)
+    return out
+
+
+def test_one_oracle_row_per_task_with_the_contract_columns(study_out: Path) -> None:
+    rows = _rows(study_out)
+    oracle = [r for r in rows if r["controller"] == "oracle"]
+    tasks = {r["task_id"] for r in rows}
+    assert len(oracle) == len(tasks) == 5
+    assert {r["task_id"] for r in oracle} == tasks
+    assert tasks == {
+        "planar2/beyond_reach#0/0",
+        "planar2/beyond_reach#0/1",
+        "planar2/random_reachable#1/0",
+        "planar2/random_reachable#1/1",
+        "planar2/slow/0",
+    }
+    for row in oracle:
+        assert (row["backend"], row["filters"], row["loop_mode"]) == ("oracle", "none", "offline")
+        assert set(REFERENCE_COLUMNS) <= set(row)
+        assert row["reference.achievable"] == (row["reference.status"] == "feasible")
+        assert row["max_error"] == pytest.approx(row["reference.max_error"])
+        assert row["position_violations"] == 0 and row["velocity_violations"] == 0
+        assert row["reference.max_joint_speed"] <= 10.0
+        assert math.isnan(row["reference.max_orientation_error"])  # position task
+        assert row["reference.near_singular"] == (row["reference.min_sigma"] < 0.05)
+    by_type = {r["generator"]: r["reference.status"] for r in oracle}
+    assert by_type == {"beyond_reach": "infeasible", "random_reachable": "feasible"}
+    assert all(r["generator_entry"] for r in rows)
+
+
+def test_resume_does_not_recompute_the_reference(study_out: Path) -> None:
+    plan = plan_study(parse_study(STUDY))
+    again = run_study(plan, study_out, "oracle.yaml", workers=1)
+    assert again.ran == 0 and again.skipped_stored == 20
+    assert sum(r["controller"] == "oracle" for r in _rows(study_out)) == 5
+
+
+def test_time_budget_is_a_stored_failed_reference(tmp_path: Path) -> None:
+    study = dict(STUDY, generators=[STUDY["generators"][0]], reference={"time_budget": 1e-9})
+    plan = plan_study(parse_study(study))
+    outcome = run_study(plan, tmp_path, "s", workers=1)
+    assert outcome.ran == 2 * 4
+    oracle = [r for r in _rows(tmp_path) if r["controller"] == "oracle"]
+    assert [r["reference.status"] for r in oracle] == ["failed", "failed"]
+    assert all("time budget" in r["error_message"] for r in oracle)
+
+
+def test_reference_can_be_switched_off() -> None:
+    plan = plan_study(parse_study(dict(STUDY, reference={"enabled": False})))
+    assert len(plan.episodes) == 5 * 3
+
+
+@pytest.mark.parametrize(
+    ("reference", "field"),
+    [({"time_budget": 0}, "reference.time_budget"), ({"speed_bound": "fast"}, "speed_bound")],
+)
+def test_bad_reference_settings_name_the_field(reference: dict, field: str) -> None:
+    from otmm_qp.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match=field):
+        parse_study(dict(STUDY, reference=reference))
+
+
+def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import importlib.util
+    import json
+
+    import yaml
+
+    root = Path(__file__).resolve().parent.parent
+    spec = importlib.util.spec_from_file_location(
+        "bench_reference", root / "benchmarks" / "bench_reference.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump(dict(STUDY, controllers=STUDY["controllers"][:1])))
+    out = tmp_path / "bench.json"
+    assert module.main(["--tasks", "3", "--config", str(config), "--json", str(out)]) == 0
+    numbers = json.loads(out.read_text())
+    assert numbers["tasks"] == 3 and numbers["episodes"] == 6
+    assert 0.0 < numbers["reference_s"] < numbers["compute_s"]
+    assert 0.0 < numbers["reference_share"] < 1.0
+    assert sum(g["tasks"] for g in numbers["groups"].values()) == 3
+    assert "% (" in capsys.readouterr().out

@@ -98,6 +98,9 @@ class ExperimentConfig(_Strict):
     loop_modes: list[LoopMode] | None = Field(None, min_length=1)
     clik_gain: float | None = Field(None, ge=0.0)
     task_weight: list[float] | None = None
+    #: The trajectory leaves the workspace on purpose (a study's beyond-reach task): the
+    #: runner's workspace check is skipped (its shape and finiteness checks still apply).
+    out_of_reach: bool = False
 
     @field_validator("name")
     @classmethod

@@ -118,8 +118,13 @@ def build_controller(
     return Controller(config.name, filters, backend, divergence_speed)
 
 
-def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field: str) -> None:
-    """Reject a trajectory that leaves the arm's workspace.
+def check_reachable(
+    robot: Robot, trajectory: Trajectory, duration: float, field: str, workspace: bool = True
+) -> None:
+    """Reject a trajectory that leaves the arm's workspace (``workspace``) or is malformed.
+
+    ``workspace=False`` (an experiment with ``out_of_reach: true``) keeps only the shape and
+    finiteness checks.
 
     Raises:
         UnreachableTrajectory: Naming the first unreachable point and its time, or a trajectory
@@ -137,7 +142,7 @@ def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field
             )
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(xdot))):
             raise UnreachableTrajectory(field, f"is not finite at t = {t:.3g} s")
-        if not robot.can_reach(x):
+        if workspace and not robot.can_reach(x):
             point = np.round(task_position(np.asarray(x)), 4).tolist()
             raise UnreachableTrajectory(
                 field, f"point {point} at t = {t:.3g} s is outside the workspace of {robot.name}"
@@ -290,7 +295,9 @@ def prepare_experiment(
         raise ConfigError(duration_field, f"duration must be finite and > 0, got {duration:.3g}")
     check_step_count(duration / dt, max_steps, values, duration_field)
     check_robot(robot, q0, field)
-    check_reachable(robot, trajectory, duration, f"{field}.trajectory")
+    check_reachable(
+        robot, trajectory, duration, f"{field}.trajectory", workspace=not config.out_of_reach
+    )
     controllers, skipped = _build_controllers(config, field, suite.metrics.blow_up_speed)
     check_controllers(
         controllers, robot, KinematicState.compute(robot, q0, weight), trajectory, field

@@ -32,7 +32,7 @@ from otmm_qp.controller import Controller  # noqa: E402
 from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
 from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
 from otmm_qp.robots.robot import FloatArray  # noqa: E402
-from otmm_qp.simulation.simulate import simulate  # noqa: E402
+from otmm_qp.simulation import Episode, Loop, simulate  # noqa: E402
 from otmm_qp.state import KinematicState  # noqa: E402
 from otmm_qp.trajectories.pose import PoseCircleTrajectory  # noqa: E402
 from otmm_qp_controllers.qp import QpBackend  # noqa: E402
@@ -52,8 +52,8 @@ def record(steps: int) -> tuple[PinocchioArm, FloatArray, FloatArray, FloatArray
     start = robot.kinematics(q0)[0]
     centre = np.asarray(start)[:3, 3] + np.array([0.0, 0.15, 0.0])
     trajectory = PoseCircleTrajectory(start, centre, radius=0.15, period=4.0)
-    run = simulate(robot, Controller("qp", [], QpBackend()), trajectory, q0, DT, 4.0, "clik",
-                   CLIK_GAIN)  # fmt: skip
+    episode = Episode(robot, trajectory, q0, DT, 4.0, Loop("clik", CLIK_GAIN))
+    run = simulate(episode, Controller("qp", [], QpBackend()))
     picks = np.unique(np.linspace(0, len(run.t) - 1, steps).round().astype(int))
     xdot = np.empty((picks.size, robot.task_dim))
     for i, k in enumerate(picks):

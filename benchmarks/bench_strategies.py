@@ -22,8 +22,8 @@ from otmm_qp.controller import Controller  # noqa: E402
 from otmm_qp.filters.direction_aware_otmm import DirectionAwareOtmmFilter  # noqa: E402
 from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
 from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
+from otmm_qp.simulation import Episode, Loop, simulate  # noqa: E402
 from otmm_qp.simulation.loop_modes import commanded_velocity  # noqa: E402
-from otmm_qp.simulation.simulate import simulate  # noqa: E402
 from otmm_qp.state import KinematicState  # noqa: E402
 from otmm_qp.trajectories.pose import PoseLineTrajectory  # noqa: E402
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend  # noqa: E402
@@ -43,7 +43,7 @@ def record(steps: int) -> tuple[PinocchioArm, np.ndarray, np.ndarray, np.ndarray
     q0 = robot.configuration(np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]))
     trajectory = PoseLineTrajectory(robot.forward(q0), end=[0.95, 0.0, 0.45], duration=4.0)
     controller = Controller("r", [OtmmFilter(0.05, corank="all")], DampedLeastSquaresBackend(0.05))
-    result = simulate(robot, controller, trajectory, q0, DT, 5.0, "clik", GAIN)
+    result = simulate(Episode(robot, trajectory, q0, DT, 5.0, Loop("clik", GAIN)), controller)
     picks = np.unique(np.linspace(0, len(result.t) - 1, steps).round().astype(int))
     qs = np.array([robot.configuration(result.q[k]) for k in picks])
     xdots = np.empty((picks.size, 6))

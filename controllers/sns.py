@@ -1,4 +1,4 @@
-r"""Saturation in the Null Space with optimal task scaling (Flacco, De Luca, Khatib 2012)."""
+r"""Saturation in the Null Space with greedy task scaling (Flacco, De Luca, Khatib 2012)."""
 
 from __future__ import annotations
 
@@ -62,6 +62,15 @@ class SnsBackend(Backend):
     (:func:`task_scaling_factor`), and its saturation set are used: then
     :math:`J\dot q = s^*\dot x` — the task *direction* is preserved, only its magnitude is
     scaled — and every bound is met (the saturated joints sit exactly on their bound).
+
+    **The scale is greedy, not optimal.** Flacco et al. call this "optimal task scaling", but
+    the saturation set is built one joint at a time (most critical first) and never revised,
+    so on redundant Jacobians ``s*`` can be *smaller* than the largest feasible scale
+    :math:`\max\{s \in [0,1] : \exists\dot q,\ J\dot q = s\dot x,\ \dot Q_{min} \le
+    \dot q \le \dot Q_{max}\}` (a linear program). Example (``tests/test_strategy_backends.py``):
+    3-link unit planar arm, q = (−1.0, −1.8, −0.2) rad, ẋ = (−1.0, −1.8) m/s, bound 1 rad/s:
+    SNS 0.7309, LP 0.7464. Over 2 000 random redundant cases the greedy scale was below the
+    LP optimum in 1 % of them, by at most 2.7 %; it never exceeds it (it is always feasible).
 
     Bounds per joint (Flacco's shaping without the acceleration term):
     :math:`\dot Q_{max} = \min(\dot q_{max}, (\theta_{max} - \theta)/dt)`,

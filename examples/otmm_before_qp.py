@@ -16,7 +16,7 @@ from otmm_qp import Controller
 from otmm_qp.filters import OtmmFilter
 from otmm_qp.metrics import compute_metrics
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
-from otmm_qp.simulation import simulate
+from otmm_qp.simulation import Episode, Loop, simulate
 from otmm_qp.trajectories import PoseLineTrajectory
 from otmm_qp_controllers.qp import QpBackend
 
@@ -38,7 +38,8 @@ def main() -> dict[str, dict[str, object]]:
             duration=4.0,
         )
         controller = Controller(name, filters, QpBackend(solver="daqp", damping=1e-3))
-        run = simulate(robot, controller, trajectory, q0, DT, 5.0, "clik", 10.0, weight)
+        episode = Episode(robot, trajectory, q0, DT, 5.0, Loop("clik", 10.0), task_weight=weight)
+        run = simulate(episode, controller)
         metrics = compute_metrics(run)
         results[name] = metrics
         print(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -24,9 +25,10 @@ def arm_runs() -> dict[str, dict[str, dict[str, object]]]:
         suite = load_config(path)
         for index, experiment in enumerate(suite.experiments):
             prepared = prepare_experiment(suite, index, path.name)
-            prepared.controllers = [
-                c for c in prepared.controllers if c.name in ("otmm+qp", "pinv")
-            ]
+            prepared = dataclasses.replace(
+                prepared,
+                controllers=[c for c in prepared.controllers if c.name in ("otmm+qp", "pinv")],
+            )
             settings = MetricSettings(**suite.metrics.model_dump())
             records = run_experiment(prepared, settings)
             results[experiment.name] = {r.result.controller: r.metrics for r in records}

@@ -73,7 +73,7 @@ def test_bench_subcommand(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
 
 def test_bench_rejects_too_few_steps(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert main(["bench", "--out", str(tmp_path), "--steps", "3"]) == 2
-    assert "steps: must be >= 10, got 3" in capsys.readouterr().err
+    assert "--steps: must be in [10, 100000], got 3" in capsys.readouterr().err
 
 
 def test_bench_cli_accepts_the_command_it_records(
@@ -87,7 +87,7 @@ def test_bench_cli_accepts_the_command_it_records(
     assert result["rounds"] == 2
     assert result["command"] == "otmm-qp " + " ".join(args)
     assert main(["bench", "--out", str(out), "--steps", "10", "--rounds", "0"]) == 2
-    assert "rounds: must be >= 1, got 0" in capsys.readouterr().err
+    assert "--rounds: must be in [1, 1000], got 0" in capsys.readouterr().err
 
 
 def test_bench_step_script(tmp_path: Path) -> None:
@@ -159,38 +159,77 @@ def test_api_shapes_raise_dimension_error() -> None:
 @pytest.mark.parametrize(
     ("argument", "value"),
     [("dt", 0.0), ("dt", -0.01), ("dt", float("nan")), ("dt", float("inf")),
-     ("duration", -1.0), ("duration", float("nan")), ("duration", float("inf"))],
+     ("duration", -1.0), ("duration", float("nan")), ("duration", float("inf")),
+     ("max_steps", 0), ("max_steps", 2.5)],
 )  # fmt: skip
-def test_simulate_rejects_bad_time_arguments(argument: str, value: float) -> None:
-    from otmm_qp.controller import Controller
+def test_episode_rejects_bad_time_arguments(argument: str, value: float) -> None:
     from otmm_qp.robots.planar_arm import PlanarArm
-    from otmm_qp.simulation import simulate
+    from otmm_qp.simulation import Episode
     from otmm_qp.trajectories.circle import CircleTrajectory
-    from otmm_qp_controllers.pinv import PseudoInverseBackend
 
     robot = PlanarArm([1.0, 1.0])
     q0 = np.array([0.3, 1.2])
     trajectory = CircleTrajectory(robot.forward(q0), [1.2, 0.5], 0.3, 1.0)
     arguments = {"dt": 0.01, "duration": 0.1, argument: value}
     with pytest.raises(ParameterError, match=f"^{argument}: "):
-        simulate(robot, Controller("p", [], PseudoInverseBackend()), trajectory, q0, **arguments)
+        Episode(robot, trajectory, q0, **arguments)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("mode", "gain", "field"),
+    [("open", 10.0, "loop_mode"), ("clik", -1.0, "clik_gain"), ("clik", float("inf"), "clik_gain"),
+     ("clik", float("nan"), "clik_gain")],
+)  # fmt: skip
+def test_loop_rejects_bad_mode_and_gain(mode: str, gain: float, field: str) -> None:
+    from otmm_qp.simulation import Loop
+
+    with pytest.raises(ParameterError, match=f"^{field}: "):
+        Loop(mode, gain)  # type: ignore[arg-type]
+
+
+def test_episode_is_frozen_and_its_arrays_read_only() -> None:
+    import dataclasses
+
+    from otmm_qp.robots.planar_arm import PlanarArm
+    from otmm_qp.simulation import Episode
+    from otmm_qp.trajectories.circle import CircleTrajectory
+
+    robot = PlanarArm([1.0, 1.0])
+    q0 = np.array([0.3, 1.2])
+    weight = [1.0, 2.0]
+    episode = Episode(robot, CircleTrajectory(robot.forward(q0), [1.2, 0.5], 0.3, 1.0), q0, 0.01,
+                      0.1, task_weight=weight)  # fmt: skip
+    q0[0] = 9.0  # the episode kept its own copy
+    assert episode.q0[0] == 0.3 and episode.steps == 10
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        episode.dt = 0.5  # type: ignore[misc]
+    with pytest.raises(ValueError, match="read-only"):
+        episode.q0[0] = 1.0
+    assert episode.task_weight is not None and episode.task_weight.tolist() == weight
+    with pytest.raises(DimensionError, match="task_weight"):
+        Episode(episode.robot, episode.trajectory, q0, 0.01, 0.1, task_weight=[1.0])
+    with pytest.raises(ParameterError, match="task_weight"):
+        Episode(episode.robot, episode.trajectory, q0, 0.01, 0.1, task_weight=[1.0, float("inf")])
+    with pytest.raises(ParameterError, match=r"max_steps = 5 .*GiB"):
+        Episode(episode.robot, episode.trajectory, q0, 0.01, 0.1, max_steps=5)
 
 
 def test_simulate_with_nan_q0_returns_zero_steps_and_says_why() -> None:
     from otmm_qp.controller import Controller
     from otmm_qp.robots.planar_arm import PlanarArm
-    from otmm_qp.simulation import simulate
+    from otmm_qp.simulation import Episode, simulate
     from otmm_qp.trajectories.circle import CircleTrajectory
     from otmm_qp_controllers.pinv import PseudoInverseBackend
 
     robot = PlanarArm([1.0, 1.0])
     trajectory = CircleTrajectory(np.array([1.0, 1.0]), [1.2, 0.5], 0.3, 1.0)
     controller = Controller("p", [], PseudoInverseBackend())
-    result = simulate(robot, controller, trajectory, np.array([np.nan, 1.0]), 0.01, 0.1)
+    episode = Episode(robot, trajectory, np.array([np.nan, 1.0]), 0.01, 0.1)
+    result = simulate(episode, controller)
     assert result.steps == 0 and result.error_message is not None
     assert "q0" in result.error_message
     with pytest.raises(DimensionError, match="q0"):
-        simulate(robot, controller, trajectory, np.zeros(3), 0.01, 0.1)
+        Episode(robot, trajectory, np.zeros(3), 0.01, 0.1)
 
 
 def test_unknown_plugin_message_singularises_trajectories() -> None:

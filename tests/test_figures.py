@@ -17,8 +17,8 @@ from otmm_qp.filters.otmm import OtmmFilter
 from otmm_qp.output.figures import DPI, figure_hook, plot_comparison, plot_run
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.runner.run import RunRecord
+from otmm_qp.simulation import Episode, Loop, simulate
 from otmm_qp.simulation.run_result import RunResult
-from otmm_qp.simulation.simulate import simulate
 from otmm_qp.trajectories.circle import CircleTrajectory
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -46,7 +46,9 @@ def run(controller: Controller, duration: float = 1.2) -> RunResult:
         direction="clockwise",
         start_angle=np.pi,
     )
-    return simulate(robot, controller, trajectory, q0, 0.02, duration, "clik", 10.0, None, "T")
+    return simulate(
+        Episode(robot, trajectory, q0, 0.02, duration, Loop("clik", 10.0), name="T"), controller
+    )
 
 
 def pinv() -> Any:

@@ -18,7 +18,7 @@ from otmm_qp.peers import models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.runner import run_suite
-from otmm_qp.simulation.simulate import simulate
+from otmm_qp.simulation import Episode, simulate
 from otmm_qp.state import KinematicState
 
 PEER_ENTRY_POINTS = {
@@ -267,7 +267,7 @@ def test_position_limit_override_reaches_the_peer_in_a_run(
         "trajectory", start=start,
     )  # fmt: skip
     backend = registry.create(registry.BACKENDS, peer, {}, peer)
-    result = simulate(robot, Controller(peer, [], backend), trajectory, q0, 0.01, 1.5)
+    result = simulate(Episode(robot, trajectory, q0, 0.01, 1.5), Controller(peer, [], backend))
     assert result.error_message is None
     assert float(np.max(result.q[:, 0])) <= 1.0 + 1e-9
     assert float(np.max(result.q[:, 0])) > 0.95  # the limit was really approached

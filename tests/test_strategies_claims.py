@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -22,7 +23,8 @@ def run_subset(name: str, experiments: set[str], controllers: set[str]) -> Runs:
         if experiment.name not in experiments:
             continue
         prepared = prepare_experiment(suite, index, name)
-        prepared.controllers = [c for c in prepared.controllers if c.name in controllers]
+        kept = [c for c in prepared.controllers if c.name in controllers]
+        prepared = dataclasses.replace(prepared, controllers=kept)
         for record in run_experiment(prepared, settings):
             r = record.result
             out[(r.experiment, r.loop_mode, r.controller)] = record.metrics

@@ -116,12 +116,26 @@ def test_sns_meets_bounds_exactly_and_preserves_the_task_direction(
         assert out.scale == 1.0  # nothing to saturate
 
 
-@settings(max_examples=30)
-@given(st.integers(3, 5), st.integers(0, 2**31 - 1))
-def test_sns_task_scale_is_the_optimal_one(m: int, seed: int) -> None:
-    """On redundant arms SNS reaches the largest feasible scale (checked by an LP)."""
+def best_feasible_scale(jacobian: np.ndarray, xdot: np.ndarray, bound: float) -> float:
+    """max s ∈ [0, 1] s.t. J q̇ = s ẋ, |q̇| ≤ bound: the LP the SNS scale is compared with."""
     from scipy.optimize import linprog
 
+    m = jacobian.shape[1]
+    A = np.hstack([jacobian, -xdot[:, None]])
+    lp = linprog(
+        np.r_[np.zeros(m), -1.0],
+        A_eq=A,
+        b_eq=np.zeros(jacobian.shape[0]),
+        bounds=[(-bound, bound)] * m + [(0, 1)],
+    )
+    assert lp.status == 0
+    return float(lp.x[-1])
+
+
+@settings(max_examples=30)
+@given(st.integers(3, 5), st.integers(0, 2**31 - 1))
+def test_sns_task_scale_is_feasible_and_never_above_the_lp_optimum(m: int, seed: int) -> None:
+    """On redundant arms the greedy SNS scale is realised exactly and is ≤ the best feasible one."""
     rng = np.random.default_rng(seed)
     arm = PlanarArm(list(rng.uniform(0.4, 1.2, m)))
     state = KinematicState.compute(arm, rng.uniform(-2.5, 2.5, m))
@@ -131,18 +145,58 @@ def test_sns_task_scale_is_the_optimal_one(m: int, seed: int) -> None:
     backend = SnsBackend(max_speed=1.0)
     backend.bind(arm, 0.01)
     out = backend.solve(state, xdot, np.zeros(m))
-    A = np.hstack([state.jacobian, -xdot[:, None]])
-    lp = linprog(
-        np.r_[np.zeros(m), -1.0], A_eq=A, b_eq=np.zeros(2), bounds=[(-1, 1)] * m + [(0, 1)]
-    )
-    assert lp.status == 0
-    # SNS saturates greedily, one joint at a time: it may stop below the LP optimum, never above.
-    assert out.scale <= lp.x[-1] + 1e-9
-    assert out.scale >= lp.x[-1] - 1e-6 or out.status == "bounded"
+    optimum = best_feasible_scale(state.jacobian, xdot, 1.0)
+    # The real property of every step, saturated or not: a feasible, direction-preserving
+    # q̇ that realises exactly the scale it reports, and that scale is at most the optimum.
+    assert np.all(np.abs(out.qdot) <= 1.0)
+    np.testing.assert_allclose(state.jacobian @ out.qdot, out.scale * xdot, atol=1e-9)
+    assert 0.0 <= out.scale <= optimum + 1e-9
+    if optimum > 0.0:
+        assert out.scale > 0.0  # greedy, but it never gives up on a feasible task
+    if optimum == pytest.approx(1.0, abs=1e-12) and out.scale == 1.0:
+        assert out.status in ("ok", "bounded")
+
+
+def test_sns_greedy_scale_is_strictly_below_the_best_feasible_one() -> None:
+    """The counter-example to "optimal": the LP finds a 2 % larger scale than greedy SNS."""
+    arm = PlanarArm([1.0, 1.0, 1.0])
+    backend = SnsBackend(max_speed=1.0)
+    backend.bind(arm, 0.01)
+    state = KinematicState.compute(arm, np.array([-1.0, -1.8, -0.2]))
+    xdot = np.array([-1.0, -1.8])
+    out = backend.solve(state, xdot, np.zeros(3))
+    optimum = best_feasible_scale(state.jacobian, xdot, 1.0)
+    assert out.status == "bounded"
+    assert out.scale == pytest.approx(0.73094, abs=1e-5)
+    assert optimum == pytest.approx(0.74638, abs=1e-5)
+    assert out.scale < optimum - 0.01
+    np.testing.assert_allclose(state.jacobian @ out.qdot, out.scale * xdot, atol=1e-12)
+
+
+def test_sns_greedy_gap_over_random_redundant_cases() -> None:
+    """How often and by how much the greedy scale falls short (the numbers in sns.py)."""
+    ratios = []
+    for seed in range(300):
+        rng = np.random.default_rng(seed)
+        m = int(rng.integers(3, 6))
+        arm = PlanarArm(list(rng.uniform(0.4, 1.2, m)))
+        state = KinematicState.compute(arm, rng.uniform(-2.5, 2.5, m))
+        if state.sigma_min < 1e-3:
+            continue
+        xdot = rng.normal(size=2) * 2.0
+        backend = SnsBackend(max_speed=1.0)
+        backend.bind(arm, 0.01)
+        scale = backend.solve(state, xdot, np.zeros(m)).scale
+        optimum = best_feasible_scale(state.jacobian, xdot, 1.0)
+        assert scale <= optimum + 1e-9
+        ratios.append(scale / optimum if optimum > 0.0 else 1.0)
+    ratio = np.array(ratios)
+    assert ratio.min() >= 0.95  # never far below ...
+    assert np.mean(ratio < 1.0 - 1e-6) < 0.05  # ... and rarely below at all
 
 
 def test_sns_uses_redundancy_before_scaling() -> None:
-    """A 3-link arm: the full task needs one joint saturated, and SNS matches the LP optimum."""
+    """A 3-link arm: the full task needs one joint saturated; here SNS matches the LP optimum."""
     arm = PlanarArm([1.0, 1.0, 1.0])
     backend = SnsBackend(max_speed=1.0)
     backend.bind(arm, 0.01)
@@ -214,3 +268,54 @@ def test_manipulability_step_stays_in_the_null_space_and_raises_w() -> None:
     np.testing.assert_allclose(
         backend.solve(s2, xdot, np.zeros(2)).qdot, np.linalg.solve(s2.jacobian, xdot)
     )
+
+
+def test_jparse_as_its_authors_run_it_row_gains_and_null_space_term() -> None:
+    """q̇ = J_s⁺(P + KΦ) G ẋ + (I − J_s⁺J_s) q̇_2 against a matrix form on the Panda pose task."""
+    panda = PinocchioArm(name="panda", task="pose")
+    home = np.zeros(7)
+    backend = JParseBackend(
+        gamma=0.2,
+        singular_gain=2.0,
+        position_gain=3.0,
+        orientation_gain=0.5,
+        secondary={"type": "posture", "gain": 3.0, "q_nominal": list(home), "max_speed": 0.6},
+    )
+    backend.bind(panda, 0.01)
+    rng = np.random.default_rng(4)
+    for q in (
+        np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]),
+        np.array([0.0, 0.0, 0.0, -0.05, 0.0, 0.1, 0.0]),
+    ):
+        state = KinematicState.compute(panda, panda.configuration(q))
+        xdot = rng.normal(size=6)
+        G = np.diag([3.0] * 3 + [0.5] * 3)
+        J = state.jacobian
+        q2 = np.clip(3.0 * (home - q), -0.6, 0.6)
+        U, S, Vt = np.linalg.svd(J)
+        J_safe = U @ np.diag(np.maximum(S, 0.2 * S.max())) @ Vt[:6]
+        N = np.eye(7) - np.linalg.pinv(J_safe) @ J_safe
+        expected = reference_jparse(J, G @ xdot, 0.2, 2.0) + N @ q2
+        np.testing.assert_allclose(
+            backend.solve(state, xdot, np.zeros(7)).qdot, expected, atol=1e-9
+        )
+        # The null-space term never changes the task velocity.
+        pure = backend.solve(state, np.zeros(6), np.zeros(7)).qdot
+        np.testing.assert_allclose(J @ pure, 0.0, atol=1e-10)
+    # Defaults keep today's J-PARSE exactly.
+    plain = JParseBackend()
+    plain.bind(panda, 0.01)
+    state = KinematicState.compute(panda, panda.configuration(np.full(7, 0.3)))
+    xdot = rng.normal(size=6)
+    np.testing.assert_array_equal(
+        plain.solve(state, xdot, np.zeros(7)).qdot,
+        state.Vt.T @ (plain.gains(state.sigma) * (xdot @ state.U)),
+    )
+
+
+def test_jparse_orientation_gain_needs_a_pose_task() -> None:
+    backend = JParseBackend(orientation_gain=2.0)
+    with pytest.raises(ParameterError, match="^orientation_gain: applies to pose tasks only"):
+        backend.bind(PlanarArm([1.0, 0.8]), 0.01)
+    with pytest.raises(ParameterError, match="^position_gain: must be >= 0"):
+        JParseBackend(position_gain=-1.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -97,11 +98,14 @@ def _task_id(row: dict[str, Any]) -> str:
 def with_oracle(study: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A copy of the study with task_id on every row and one oracle row per task."""
     out = tmp_path_factory.mktemp("with-oracle")
-    (out / "study.json").write_bytes((study / "study.json").read_bytes())
     table = read_episodes(study)
     assert table is not None
     rows = table.to_pylist()
     oracle = _oracle_rows(rows)
+    marker = json.loads((study / "study.json").read_text())
+    if isinstance(marker.get("episode_keys"), list):  # the oracle rows are part of the plan
+        marker["episode_keys"] += [r["episode_key"] for r in oracle]
+    (out / "study.json").write_text(json.dumps(marker))
     for row in rows + oracle:
         row["task_id"] = _task_id(row)
     (out / "episodes").mkdir()

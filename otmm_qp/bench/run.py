@@ -21,11 +21,16 @@ from otmm_qp.bench.timing import (
     time_pipelines,
 )
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.output.folders import claim_folder
 from otmm_qp.output.paths import atomic_write_text
 
 ROUNDS = 5
 #: Fewest replayed states accepted (the percentiles need a few samples per round).
 MIN_STEPS = 10
+#: Most replayed states accepted (each is recorded up front: ~0.1 MB per state on the Panda).
+MAX_STEPS = 100_000
+#: Most timing rounds accepted.
+MAX_ROUNDS = 1_000
 
 
 def bench_scenario(scenario: Scenario, full: bool, rounds: int) -> dict[str, Any]:
@@ -55,12 +60,20 @@ def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = F
         0 (the exit status; unmet targets are reported in the table, not as a failure).
 
     Raises:
-        ParameterError: ``steps`` or ``rounds`` too small.
+        ParameterError: ``steps`` or ``rounds`` out of range.
+        OutputPathError: ``out`` is not a usable bench folder (checked before any timing).
     """
-    if steps < MIN_STEPS:
-        raise ParameterError("steps", f"must be >= {MIN_STEPS}, got {steps}")
-    if rounds < 1:
-        raise ParameterError("rounds", f"must be >= 1, got {rounds}")
+    if not MIN_STEPS <= steps <= MAX_STEPS:
+        raise ParameterError("--steps", f"must be in [{MIN_STEPS}, {MAX_STEPS}], got {steps}")
+    if not 1 <= rounds <= MAX_ROUNDS:
+        raise ParameterError("--rounds", f"must be in [1, {MAX_ROUNDS}], got {rounds}")
+    out = Path(out)
+    with claim_folder(out, "bench"):
+        return _run_claimed(out, steps, rounds, planar_only)
+
+
+def _run_claimed(out: Path, steps: int, rounds: int, planar_only: bool) -> int:
+    """:func:`run_bench` in the claimed (locked, writable) folder ``out``."""
     info = machine()
     with warnings.catch_warnings():
         # qpsolvers warns on every dense-to-sparse conversion for OSQP (pink's path too):
@@ -83,7 +96,6 @@ def run_bench(out: Path, steps: int, rounds: int = ROUNDS, planar_only: bool = F
         "load_average_end": load_average(),
         "scenarios": scenarios,
     }
-    out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "bench.json", json.dumps(result, indent=2) + "\n")
     table = markdown(result)
     atomic_write_text(out / "bench.md", table + "\n")

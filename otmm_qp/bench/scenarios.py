@@ -22,7 +22,7 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.controller import Controller, ControllerOutput
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.simulation.simulate import simulate
+from otmm_qp.simulation import Episode, Loop, simulate
 from otmm_qp.state import KinematicState
 from otmm_qp.trajectories.trajectory import Trajectory
 
@@ -92,9 +92,8 @@ def record(
 
     controller = otmm_controller("otmm+qp", "qp", {"solver": "daqp"})
     observer: Callable[..., None] = keep
-    result = simulate(
-        robot, controller, trajectory, q0, DT, duration, "clik", CLIK_GAIN, on_step=observer
-    )
+    episode = Episode(robot, trajectory, q0, DT, duration, Loop("clik", CLIK_GAIN))
+    result = simulate(episode, controller, on_step=observer)
     q, xdot, qdot_prev = (np.array([row[i] for row in kept]) for i in range(3))
     bounded = float(np.mean(result.status == "bounded")) if result.steps else 0.0
     return Scenario(name, robot, q, xdot, qdot_prev, bounded)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 NAME = "bench"
 HELP = "time one control step of each pipeline"
@@ -17,7 +16,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """
     from otmm_qp.bench.run import ROUNDS
 
-    parser.add_argument("--out", type=Path, default=Path("results/bench"))
+    parser.add_argument(
+        "--out", default="results/bench", help="bench folder (default: results/bench)"
+    )
     parser.add_argument("--steps", type=int, default=300, help="replayed states per scenario")
     parser.add_argument(
         "--rounds", type=int, default=ROUNDS,
@@ -29,5 +30,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark."""
     from otmm_qp.bench import run_bench
+    from otmm_qp.output.folders import check_out_argument
 
-    return run_bench(args.out, args.steps, args.rounds, args.planar_only)
+    return run_bench(check_out_argument(args.out), args.steps, args.rounds, args.planar_only)

@@ -17,6 +17,7 @@ NAME = "study"
 HELP = "run a study (many random tasks x controllers) into a Parquet dataset, with a report"
 
 EXIT_INTERRUPTED = 130
+EXIT_BAD_INPUT = 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--episode", help="with 'show': episode id (the report's 'id' column, or a longer prefix)"
     )
-    parser.add_argument("--out", type=Path, help="output directory (default: results/<study name>)")
+    parser.add_argument("--out", help="output directory (default: results/<safe study name>)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
         "--workers",
@@ -50,7 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the study; exit 0, 2 (bad input) or 130 (interrupted, dataset kept)."""
+    """Run the study; exit 0, 2 (bad input, or episodes that failed) or 130 (interrupted).
+
+    Every episode is stored, a failed one (a plugin exception, a malformed ``q̇``, an
+    infeasible QP under ``raise``) with its ``status`` and ``error_message``; the exit status
+    is then 2, as for ``run``, after the report is written.
+    """
     from otmm_qp.studies.execute import run_study
     from otmm_qp.studies.spec import load_study, plan_study
 
@@ -65,9 +71,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
+    from otmm_qp.output.folders import check_out_argument
+    from otmm_qp.output.paths import safe_name
+
+    given = check_out_argument(args.out) if args.out is not None else None
     config = load_study(args.file)
     plan = plan_study(config, str(args.file))
-    out = args.out if args.out is not None else Path("results") / config.name
+    out = given if given is not None else Path("results") / safe_name(config.name)
     for name, reason in plan.skipped:
         print(f"otmm-qp: skipped controller {name}: {reason}", file=sys.stderr)
     if args.quiet:
@@ -83,8 +93,10 @@ def run(args: argparse.Namespace) -> int:
     )
     if not args.no_report:
         from otmm_qp.studies.report import write_study_report
+        from otmm_qp.studies.storage import writing_report
 
-        html, markdown = write_study_report(out)
+        with writing_report(out):
+            html, markdown = write_study_report(out)
         print(f"  report: {html}\n          {markdown}")
     if outcome.interrupted:
         print(
@@ -92,6 +104,13 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
+    if outcome.failed:
+        print(
+            f"otmm-qp: error: {outcome.failed} of {outcome.ran} episodes failed or stopped early; "
+            "they are stored with status 'error' or 'stopped' and their error_message",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
     return 0
 
 

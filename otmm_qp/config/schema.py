@@ -32,11 +32,8 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from otmm_qp.output.paths import RESERVED_NAMES, safe_name
-
-#: How the commanded task velocity is formed (see :mod:`otmm_qp.simulation.loop_modes`).
-LoopMode = Literal["feedforward", "clik", "newton"]
-#: Default cap on control steps per run (raise it with ``max_steps`` or ``--max-steps``).
-DEFAULT_MAX_STEPS = 1_000_000
+from otmm_qp.simulation.episode import DEFAULT_MAX_STEPS
+from otmm_qp.simulation.loop_modes import LoopMode
 
 
 class _Strict(BaseModel):

@@ -40,7 +40,7 @@ from matplotlib.transforms import blended_transform_factory
 from otmm_qp.output.paths import atomic_open, safe_name, unique_names
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.runner import interrupt
-from otmm_qp.runner.build import PreparedExperiment
+from otmm_qp.runner.prepare import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
 

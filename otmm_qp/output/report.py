@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import base64
 import csv
-import html
 import io
 import math
 import re
@@ -38,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from otmm_qp.exceptions import ConfigError, OutputPathError
+from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
 from otmm_qp.output.summary import RunOutcome
 
@@ -311,9 +311,9 @@ def _inline(text: str) -> str:
     out = []
     for part in parts:
         if len(part) > 1 and part[0] == part[-1] and part[0] in "`$":
-            out.append(f"<code>{html.escape(part.strip('`$'))}</code>")
+            out.append(f"<code>{escape(part.strip('`$'))}</code>")
             continue
-        piece = html.escape(part)
+        piece = escape(part)
         piece = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", piece)
         out.append(re.sub(r"(?<![\w*])\*(\S.*?)\*(?![\w*])", r"<em>\1</em>", piece))
     return "".join(out)
@@ -369,14 +369,14 @@ def markdown_to_html(markdown: str) -> str:
 
 def _html_row(row: Row, best: dict[str, float]) -> str:
     """One ``<tr>`` of a scenario table (a skipped controller spans the metric columns)."""
-    controller = html.escape(row.controller)
+    controller = escape(row.controller)
     if row.skipped:
         return (
             f'<tr data-controller="{controller}"><td>{controller}</td>'
             f'<td class="skip" colspan="{len(REPORT_COLUMNS)}">'
-            f"skipped: {html.escape(row.error_message)}</td></tr>"
+            f"skipped: {escape(row.error_message)}</td></tr>"
         )
-    note = html.escape(_status_note(row))
+    note = escape(_status_note(row))
     cells = [f'<td class="name">{controller}{note}</td>']
     for key, _, spec in REPORT_COLUMNS:
         value = row.values[key]
@@ -393,11 +393,11 @@ def _html_row(row: Row, best: dict[str, float]) -> str:
 def _html_tables(rows: Sequence[Row]) -> list[str]:
     """One comparison table per (experiment, loop mode)."""
     parts = []
-    header = "".join(f"<th>{html.escape(label)}</th>" for _, label, _ in REPORT_COLUMNS)
+    header = "".join(f"<th>{escape(label)}</th>" for _, label, _ in REPORT_COLUMNS)
     for (experiment, mode), group in group_scenarios(rows).items():
         best = best_values(group)
-        parts.append(f"<h3>{html.escape(experiment)} — {html.escape(mode)}</h3>")
-        table = [f'<table data-scenario="{html.escape(experiment)}/{html.escape(mode)}">']
+        parts.append(f"<h3>{escape(experiment)} — {escape(mode)}</h3>")
+        table = [f'<table data-scenario="{escape(f"{experiment}/{mode}", "attr")}">']
         table.append(f"<tr><th>controller</th>{header}</tr>")
         table += [_html_row(row, best) for row in group]
         parts.append('<div class="scroll">' + "".join(table) + "</table></div>")
@@ -418,7 +418,7 @@ def _html_ranking(rows: Sequence[Row]) -> list[str]:
     ]
     for place, (controller, score, count) in enumerate(ranking(rows), start=1):
         table.append(
-            f"<tr><td>{place}</td><td>{html.escape(controller)}</td><td>{score:.2f}</td>"
+            f"<tr><td>{place}</td><td>{escape(controller)}</td><td>{score:.2f}</td>"
             f"<td>{count}</td></tr>"
         )
     parts.append("".join(table) + "</table>")
@@ -433,7 +433,7 @@ def _html_figures(results_dir: Path) -> list[str]:
         parts.append('<p class="note">No figures in this results folder.</p>')
     for figure in figures:
         data = base64.b64encode(figure.read_bytes()).decode("ascii")
-        caption = html.escape(figure.relative_to(results_dir).as_posix())
+        caption = escape(figure.relative_to(results_dir).as_posix())
         parts.append(
             f'<figure><img alt="{caption}" src="data:image/png;base64,{data}">'
             f"<figcaption>{caption}</figcaption></figure>"
@@ -454,8 +454,8 @@ def _html_replays(results_dir: Path) -> list[str]:
         return []
     parts = ['<h2 id="replays">Replays</h2>', "<ul>"]
     for title, relative in replays:
-        href = html.escape(relative.as_posix(), quote=True)
-        label = html.escape(title)
+        href = escape(relative.as_posix(), "attr")
+        label = escape(title)
         if relative.suffix == ".gif":
             parts.append(
                 f'<li><a href="{href}">{label}</a><br><img alt="{label}" src="{href}"></li>'
@@ -472,8 +472,8 @@ def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> s
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{html.escape(title)}</h1>",
+        f"<title>{escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{escape(title)}</h1>",
         '<p class="note">Best value per column highlighted (all columns: lower is better; '
         "runs that blew up or stopped early are not eligible). Metric definitions: "
         "<code>otmm_qp/metrics/metrics.py</code>.</p>",
@@ -530,11 +530,13 @@ def write_report(results_dir: Path) -> tuple[Path, Path]:
 def write_any_report(results_dir: Path) -> tuple[Path, Path]:
     """The report of a results folder: a study report when it holds ``study.json``."""
     results_dir = Path(results_dir)
-    if (results_dir / "study.json").is_file():
+    if (results_dir / "study.json").is_file() or (results_dir / "study.json").is_symlink():
         from otmm_qp.studies.report import (  # type: ignore[import-not-found,unused-ignore]
             write_study_report,
         )
+        from otmm_qp.studies.storage import writing_report
 
-        html, markdown = write_study_report(results_dir)
+        with writing_report(results_dir):
+            html, markdown = write_study_report(results_dir)
         return Path(html), Path(markdown)
     return write_report(results_dir)

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import base64
 import gzip
-import html
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -26,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from otmm_qp.output.escape import escape, fill_template
 from otmm_qp.replay.arm_scene import build_arm_scene, geometry_transforms
 from otmm_qp.replay.frames import FramePlan, plan_frames
 from otmm_qp.replay.safe_output import atomic_write_bytes
@@ -70,7 +69,7 @@ def _viewer_bundle() -> str:
     meshcat = import_meshcat()
     bundle = Path(os.path.dirname(meshcat.__file__)) / "viewer" / "dist" / "main.min.js"
     text = bundle.read_text(encoding="utf-8")
-    return text.replace("</script", "<\\/script")
+    return text.replace("</script", "<\\/script").replace("<!--", "<\\!--")
 
 
 def _pack(chunks: Sequence[bytes]) -> str:
@@ -164,10 +163,13 @@ def _fill_template(
 ) -> str:
     """The page: ``arm_page.html`` with the title, viewer bundle, data, scene and frames inlined."""
     template = (Path(__file__).parent / "arm_page.html").read_text(encoding="utf-8")
-    return (
-        template.replace("__TITLE__", html.escape(title))
-        .replace("__BUNDLE__", _viewer_bundle())
-        .replace("__META__", json.dumps(meta, separators=(",", ":")).replace("</", "<\\/"))
-        .replace("__SCENE__", _pack(scene_commands))
-        .replace("__FRAMES__", frames_blob)
+    return fill_template(
+        template,
+        {
+            "TITLE": escape(title, "text"),
+            "BUNDLE": _viewer_bundle(),
+            "META": escape(meta, "script"),
+            "SCENE": _pack(scene_commands),
+            "FRAMES": frames_blob,
+        },
     )

@@ -1,15 +1,20 @@
-"""Build experiments from configs and run them."""
+"""Build experiments from configs, prepare their episodes and run them."""
 
-from otmm_qp.runner.build import PreparedExperiment, build_controller, prepare_experiment
-from otmm_qp.runner.run import RunRecord, SuiteResult, prepare_suite, run_experiment, run_suite
+from otmm_qp.runner.build import build_controller
+from otmm_qp.runner.episode import RunRecord, run_episode
+from otmm_qp.runner.prepare import PreparedExperiment, make_episode, prepare, prepare_experiment
+from otmm_qp.runner.run import SuiteResult, prepare_suite, run_experiment, run_suite
 
 __all__ = [
     "PreparedExperiment",
     "RunRecord",
     "SuiteResult",
     "build_controller",
+    "make_episode",
+    "prepare",
     "prepare_experiment",
     "prepare_suite",
+    "run_episode",
     "run_experiment",
     "run_suite",
 ]

@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import math
 import os
 import sys
 import tempfile
 import warnings
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from otmm_qp import registry
-from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, SuiteConfig
+from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, PluginSpec
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import (
     ConfigError,
@@ -25,8 +24,8 @@ from otmm_qp.exceptions import (
     UnreachableTrajectory,
 )
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.simulation.loop_modes import LoopMode
-from otmm_qp.simulation.simulate import task_position
+from otmm_qp.simulation.episode import Episode
+from otmm_qp.simulation.recorder import task_position
 from otmm_qp.state import KinematicState
 from otmm_qp.status import DIVERGENCE_SPEED
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -35,8 +34,6 @@ from otmm_qp.trajectories.trajectory import Trajectory
 REACH_SAMPLES = 200
 #: Largest |joint coordinate| accepted in ``q0`` [rad or m]: beyond it trigonometry is noise.
 MAX_JOINT_COORDINATE = 1.0e4
-#: Bytes logged per step and joint/task coordinate (time series of floats), for the cap message.
-_BYTES_PER_VALUE = 8
 
 
 def _short(value: object, limit: int = 120) -> str:
@@ -60,37 +57,6 @@ class SkippedController:
     filters: str
     backend: str
     reason: str
-
-
-@dataclass
-class PreparedExperiment:
-    """An experiment ready to run: every object built and every input checked.
-
-    Attributes:
-        config: The experiment record.
-        robot: The arm.
-        q0: Start configuration, shape ``(nq,)``.
-        trajectory: Desired motion.
-        controllers: Controllers in config order.
-        dt: Control period [s].
-        duration: Simulated time [s].
-        loop_modes: Loop modes to run.
-        clik_gain: CLIK gain [1/s].
-        task_weight: Diagonal task weight, shape ``(n,)``, or None.
-        skipped: Controllers whose peer library is missing (reported, never run).
-    """
-
-    config: ExperimentConfig
-    robot: Robot
-    q0: FloatArray
-    trajectory: Trajectory
-    controllers: list[Controller]
-    dt: float
-    duration: float
-    loop_modes: list[LoopMode]
-    clik_gain: float
-    task_weight: FloatArray | None
-    skipped: list[SkippedController] = field(default_factory=list)
 
 
 def build_controller(
@@ -118,13 +84,8 @@ def build_controller(
     return Controller(config.name, filters, backend, divergence_speed)
 
 
-def check_reachable(
-    robot: Robot, trajectory: Trajectory, duration: float, field: str, workspace: bool = True
-) -> None:
-    """Reject a trajectory that leaves the arm's workspace (``workspace``) or is malformed.
-
-    ``workspace=False`` (an experiment with ``out_of_reach: true``) keeps only the shape and
-    finiteness checks.
+def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field: str) -> None:
+    """Reject a trajectory that leaves the arm's workspace.
 
     Raises:
         UnreachableTrajectory: Naming the first unreachable point and its time, or a trajectory
@@ -142,7 +103,7 @@ def check_reachable(
             )
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(xdot))):
             raise UnreachableTrajectory(field, f"is not finite at t = {t:.3g} s")
-        if workspace and not robot.can_reach(x):
+        if not robot.can_reach(x):
             point = np.round(task_position(np.asarray(x)), 4).tolist()
             raise UnreachableTrajectory(
                 field, f"point {point} at t = {t:.3g} s is outside the workspace of {robot.name}"
@@ -171,8 +132,10 @@ def captured_stderr() -> Iterator[None]:
         sys.stderr.write(text.decode("utf-8", "replace"))
 
 
-def load_robot(config: ExperimentConfig, field: str) -> Robot:
-    """Build the robot; numeric warnings (e.g. overflowing link lengths) become a ConfigError.
+def load_robot(spec: PluginSpec, field: str) -> Robot:
+    """Build a robot block; numeric warnings (e.g. overflowing link lengths) become a ConfigError.
+
+    What C libraries (urdfdom) print while loading is held back when loading fails.
 
     Raises:
         ConfigError: Unknown robot, bad parameter, or parameters that overflow.
@@ -180,9 +143,7 @@ def load_robot(config: ExperimentConfig, field: str) -> Robot:
     try:
         with captured_stderr(), warnings.catch_warnings():
             warnings.simplefilter("error")
-            robot: Robot = registry.create(
-                registry.ROBOTS, config.robot.type, config.robot.params, field
-            )
+            robot: Robot = registry.create(registry.ROBOTS, spec.type, spec.params, field)
     except (Warning, ArithmeticError) as error:
         raise ConfigError(field, f"parameters out of range: {_short(error)}") from None
     return robot
@@ -213,111 +174,7 @@ def check_robot(robot: Robot, q0: FloatArray, field: str) -> None:
         )
 
 
-def check_step_count(steps: float, max_steps: int, values_per_step: int, field: str) -> None:
-    """Refuse more than ``max_steps`` control steps per run, saying how much memory it takes.
-
-    Raises:
-        ConfigError: On ``duration``/``dt``, with the memory the logs would need.
-    """
-    if not math.isfinite(steps) or steps > max_steps:
-        gib = (
-            steps * values_per_step * _BYTES_PER_VALUE / 2**30 if math.isfinite(steps) else math.inf
-        )
-        raise ConfigError(
-            field,
-            f"duration/dt = {steps:.3g} steps per run exceeds max_steps = {max_steps} "
-            f"(the logs would take about {gib:.3g} GiB per run); shorten duration, raise dt, "
-            "or raise max_steps (config key, or --max-steps) explicitly",
-        )
-
-
-def dry_run(controller: Controller, robot: Robot, state: KinematicState, xdot: FloatArray) -> None:
-    """Take one step with a copy of ``controller`` at the start configuration.
-
-    Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``) then fail
-    before any compute; the controller itself is left untouched.
-    """
-    trial = copy.deepcopy(controller)
-    trial.bind(robot, 1.0)
-    trial.step(state, xdot, np.zeros(robot.nv))
-
-
-def check_controllers(
-    controllers: list[Controller],
-    robot: Robot,
-    state: KinematicState,
-    trajectory: Trajectory,
-    field: str,
-) -> None:
-    """Dry-run every controller at the start (see :func:`dry_run`).
-
-    Raises:
-        ConfigError: Naming the controller whose parameters do not fit the robot.
-    """
-    xdot = np.asarray(trajectory.sample(0.0)[1], dtype=float)
-    for j, controller in enumerate(controllers):
-        where = f"{field}.controllers.{j} ({controller.name})"
-        try:
-            dry_run(controller, robot, state, xdot)
-        except OtmmError as error:
-            if not isinstance(error, DimensionError | ConfigError):
-                continue  # a run-time condition (e.g. infeasible), reported by the run itself
-            raise ConfigError(where, _short(error)) from None
-        except (ValueError, TypeError, IndexError, ArithmeticError) as error:
-            raise ConfigError(
-                where,
-                f"fails on its first step with robot {robot.name} (nv = {robot.nv}, "
-                f"task {robot.task_dim}): {_short(error)}",
-            ) from None
-
-
-def prepare_experiment(
-    suite: SuiteConfig, index: int, source: str = "config", max_steps: int | None = None
-) -> PreparedExperiment:
-    """Build and check experiment ``index`` of ``suite``.
-
-    Raises:
-        ConfigError: Any bad input, with the config path of the field at fault.
-    """
-    config = suite.experiments[index]
-    field = f"{source}: experiments.{index}"
-    max_steps = suite.max_steps if max_steps is None else max_steps
-    robot = load_robot(config, f"{field}.robot")
-    q0 = _start_configuration(robot, config, field)
-    weight = _task_weight(robot, config, field)
-    trajectory = _build_trajectory(config, field, robot.forward(q0))
-    duration = config.duration if config.duration is not None else trajectory.duration
-    dt = config.dt if config.dt is not None else suite.dt
-    loop_modes = list(config.loop_modes or suite.loop_modes)
-    values = 3 * robot.nv + 4 * robot.task_dim + 12
-    duration_field = f"{field}.duration" if config.duration is not None else f"{field}.trajectory"
-    if not math.isfinite(duration) or duration <= 0.0:
-        raise ConfigError(duration_field, f"duration must be finite and > 0, got {duration:.3g}")
-    check_step_count(duration / dt, max_steps, values, duration_field)
-    check_robot(robot, q0, field)
-    check_reachable(
-        robot, trajectory, duration, f"{field}.trajectory", workspace=not config.out_of_reach
-    )
-    controllers, skipped = _build_controllers(config, field, suite.metrics.blow_up_speed)
-    check_controllers(
-        controllers, robot, KinematicState.compute(robot, q0, weight), trajectory, field
-    )
-    return PreparedExperiment(
-        config=config,
-        robot=robot,
-        q0=q0,
-        trajectory=trajectory,
-        controllers=controllers,
-        dt=dt,
-        duration=duration,
-        loop_modes=loop_modes,
-        clik_gain=config.clik_gain if config.clik_gain is not None else suite.clik_gain,
-        task_weight=weight,
-        skipped=skipped,
-    )
-
-
-def _start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray:
+def start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray:
     """``config.q0`` as checked by the robot; a ConfigError on ``q0`` gives its reason."""
     try:
         return robot.check_start(np.asarray(config.q0, dtype=float))
@@ -326,20 +183,7 @@ def _start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> 
         raise ConfigError(f"{field}.q0", message) from error
 
 
-def _task_weight(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray | None:
-    """``config.task_weight`` as an array (ConfigError unless of the task's size), or None."""
-    if config.task_weight is None:
-        return None
-    weight = np.asarray(config.task_weight, dtype=float)
-    if weight.shape != (robot.task_dim,):
-        raise ConfigError(
-            f"{field}.task_weight",
-            f"expected shape {(robot.task_dim,)}, got {weight.shape}",
-        )
-    return weight
-
-
-def _build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Trajectory:
+def build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Trajectory:
     """The experiment's trajectory from the registry, starting at ``x0``, named by its type."""
     trajectory: Trajectory = registry.create(
         registry.TRAJECTORIES,
@@ -352,7 +196,7 @@ def _build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> T
     return trajectory
 
 
-def _build_controllers(
+def build_controllers(
     config: ExperimentConfig, field: str, divergence_speed: float
 ) -> tuple[list[Controller], list[SkippedController]]:
     """Build every controller; one whose peer library is missing is skipped, not fatal."""
@@ -365,3 +209,46 @@ def _build_controllers(
             filters = "+".join(f.type for f in spec.filters) or "none"
             skipped.append(SkippedController(spec.name, filters, spec.backend.type, str(error)))
     return controllers, skipped
+
+
+def dry_run(controller: Controller, episode: Episode) -> None:
+    """Take one step with a copy of ``controller`` at the episode's start configuration.
+
+    Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``) then fail
+    before any compute; the controller itself is left untouched.
+    """
+    robot = episode.robot
+    state = KinematicState.compute(robot, episode.q0, episode.task_weight)
+    xdot = np.asarray(episode.trajectory.sample(0.0)[1], dtype=float)
+    trial = copy.deepcopy(controller)
+    trial.bind(robot, 1.0)
+    trial.step(state, xdot, np.zeros(robot.nv))
+
+
+def check_controllers(controllers: list[Controller], episode: Episode, field: str) -> None:
+    """Dry-run every controller at the episode's start (see :func:`dry_run`).
+
+    A controller whose parameters do not fit the robot fails here. Any other exception (a
+    run-time condition such as an infeasible QP, or a plugin failing for its own reasons) is
+    left to the run, which records it as that run's failure.
+
+    Raises:
+        ConfigError: Naming the controller whose parameters do not fit the robot.
+    """
+    robot = episode.robot
+    for j, controller in enumerate(controllers):
+        where = f"{field}.controllers.{j} ({controller.name})"
+        try:
+            dry_run(controller, episode)
+        except (DimensionError, ConfigError) as error:
+            raise ConfigError(where, _short(error)) from None
+        except OtmmError:
+            continue  # a run-time condition (e.g. infeasible), reported by the run itself
+        except (ValueError, TypeError, IndexError, ArithmeticError) as error:
+            raise ConfigError(
+                where,
+                f"fails on its first step with robot {robot.name} (nv = {robot.nv}, "
+                f"task {robot.task_dim}): {_short(error)}",
+            ) from None
+        except (Exception, SystemExit):  # untrusted plugin code: the run records it
+            continue

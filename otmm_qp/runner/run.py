@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TextIO
 
 from otmm_qp.config.schema import SuiteConfig
-from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
+from otmm_qp.metrics.metrics import MetricSettings
 from otmm_qp.output.paths import ensure_inside, safe_name, unique_names
 from otmm_qp.output.summary import (
     RunOutcome,
@@ -19,29 +19,10 @@ from otmm_qp.output.summary import (
     write_summary_markdown,
 )
 from otmm_qp.runner import interrupt
-from otmm_qp.runner.build import PreparedExperiment, SkippedController, prepare_experiment
+from otmm_qp.runner.build import SkippedController
+from otmm_qp.runner.episode import RunRecord, run_episode
+from otmm_qp.runner.prepare import PreparedExperiment, prepare_experiment
 from otmm_qp.simulation.run_result import RunResult
-from otmm_qp.simulation.simulate import simulate
-
-
-@dataclass
-class RunRecord:
-    """One finished run: its time series and metrics."""
-
-    result: RunResult
-    metrics: Metrics
-
-    @property
-    def identity(self) -> dict[str, str]:
-        """Experiment, loop mode, controller, filters and backend."""
-        r = self.result
-        return {
-            "experiment": r.experiment,
-            "loop_mode": r.loop_mode,
-            "controller": r.controller,
-            "filters": r.filters,
-            "backend": r.backend,
-        }
 
 
 @dataclass
@@ -107,21 +88,9 @@ def run_experiment(
 ) -> list[RunRecord]:
     """Every (loop mode, controller) run of one experiment; ``after_run`` sees each one."""
     records = []
-    for mode in prepared.loop_modes:
+    for episode in prepared.episodes:
         for controller in prepared.controllers:
-            result = simulate(
-                prepared.robot,
-                controller,
-                prepared.trajectory,
-                prepared.q0,
-                prepared.dt,
-                prepared.duration,
-                mode,
-                prepared.clik_gain,
-                prepared.task_weight,
-                prepared.config.name,
-            )
-            records.append(RunRecord(result, compute_metrics(result, settings)))
+            records.append(run_episode(episode, controller, settings))
             if after_run is not None:
                 after_run(records[-1])
     return records

@@ -1,181 +1,141 @@
-"""The closed simulation loop: state → command → filters → backend → Euler step."""
+r"""The closed simulation loop: state → command → filters → backend → integration stage.
+
+.. math:: q_{k+1} = q_k \oplus \dot q_k\,dt,\qquad \dot q_{-1} = 0
+
+Backends, filters, trajectories and robots are plugins, i.e. untrusted code: any exception
+they raise inside a step (``SystemExit`` included; ``KeyboardInterrupt`` stays an interrupt)
+and any malformed ``q̇`` (not a float array of shape ``(nv,)``) stops that run with a message
+and keeps its earlier steps, so the other runs of a suite or study go on.
+"""
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
 import numpy as np
 
 from otmm_qp.controller import Controller, ControllerOutput
-from otmm_qp.exceptions import DimensionError, InfeasibleProblem, OtmmError, ParameterError
-from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.simulation.loop_modes import LOOP_MODES, LoopMode, commanded_velocity
+from otmm_qp.exceptions import InfeasibleProblem, OtmmError
+from otmm_qp.robots.robot import FloatArray
+from otmm_qp.simulation.episode import Episode
+from otmm_qp.simulation.integrator import Integrator
 from otmm_qp.simulation.recorder import RunRecorder, task_position
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
-from otmm_qp.trajectories.trajectory import Trajectory
 
-__all__ = ["StepObserver", "check_run_arguments", "simulate", "task_position"]
+__all__ = ["StepObserver", "failure_message", "simulate", "task_position"]
 
 #: Called after every completed step with ``(k, state, command ẋ_c, q̇_prev, output)``.
 StepObserver = Callable[[int, KinematicState, FloatArray, FloatArray, ControllerOutput], None]
 
-
-def _positive_finite(name: str, value: float, allow_zero: bool = False) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, f"must be a number, got {value!r:.40}") from None
-    if not math.isfinite(number) or number < 0.0 or (number == 0.0 and not allow_zero):
-        allowed = ">= 0" if allow_zero else "> 0"
-        raise ParameterError(name, f"must be a finite number {allowed}, got {number}")
-    return number
+#: Longest plugin message kept in a run's ``error_message`` [characters].
+MESSAGE_LIMIT = 300
 
 
-def check_run_arguments(
-    robot: Robot,
-    q0: FloatArray,
-    dt: float,
-    duration: float,
-    loop_mode: str,
-    clik_gain: float,
-    task_weight: FloatArray | None,
-) -> tuple[FloatArray, int, FloatArray | None]:
-    """Validate the arguments of :func:`simulate` once per run.
+class MalformedOutput(OtmmError):
+    """A backend (or filter) returned a ``q̇`` that is not a float array of shape ``(nv,)``."""
 
-    Returns:
-        ``(q0 as a float array (nq,), number of steps, task weight (n,) or None)``.
 
-    Raises:
-        ParameterError: ``dt``, ``duration``, ``clik_gain``, ``loop_mode`` or ``task_weight``
-            out of range (naming the argument).
-        DimensionError: ``q0`` or ``task_weight`` of the wrong shape.
-    """
-    dt = _positive_finite("dt", dt)
-    duration = _positive_finite("duration", duration, allow_zero=True)
-    _positive_finite("clik_gain", clik_gain, allow_zero=True)
-    if loop_mode not in LOOP_MODES:
-        raise ParameterError("loop_mode", f"must be one of {', '.join(LOOP_MODES)}")
-    q = np.array(q0, dtype=float)
-    if q.shape != (robot.nq,):
-        raise DimensionError("q0", (robot.nq,), q.shape)
-    weight = None
-    if task_weight is not None:
-        weight = np.asarray(task_weight, dtype=float)
-        if weight.shape != (robot.task_dim,):
-            raise DimensionError("task_weight", (robot.task_dim,), weight.shape)
-        if not np.all(np.isfinite(weight) & (weight > 0.0)):
-            raise ParameterError("task_weight", "every weight must be a finite number > 0")
-    return q, max(1, int(round(duration / dt))), weight
+def failure_message(k: int, error: BaseException) -> str:
+    """``step k: ...`` on one line for an error raised inside step ``k``."""
+    if isinstance(error, InfeasibleProblem):
+        return str(InfeasibleProblem(k, error.detail))
+    text = " ".join(str(error).split())[:MESSAGE_LIMIT]
+    if isinstance(error, OtmmError):
+        return f"step {k}: {text}"
+    kind = type(error).__name__
+    return (
+        f"step {k}: a plugin raised {kind}: {text}" if text else f"step {k}: a plugin raised {kind}"
+    )
+
+
+def _checked_qdot(output: ControllerOutput, nv: int) -> FloatArray:
+    """``output.qdot`` when it is a float array of shape ``(nv,)``; else MalformedOutput."""
+    qdot = output.qdot
+    if type(qdot) is not np.ndarray or qdot.shape != (nv,) or qdot.dtype.kind != "f":
+        shape = getattr(qdot, "shape", None)
+        raise MalformedOutput(
+            f"the backend returned q̇ of type {type(qdot).__name__}"
+            + (f" and shape {shape}" if shape is not None else "")
+            + f"; expected a float array of shape ({nv},)"
+        )
+    return qdot
 
 
 def simulate(
-    robot: Robot,
+    episode: Episode,
     controller: Controller,
-    trajectory: Trajectory,
-    q0: FloatArray,
-    dt: float,
-    duration: float,
-    loop_mode: LoopMode = "clik",
-    clik_gain: float = 10.0,
-    task_weight: FloatArray | None = None,
-    experiment: str = "",
     *,
     on_step: StepObserver | None = None,
+    integrator: Integrator | None = None,
 ) -> RunResult:
-    r"""Run ``controller`` on ``robot`` along ``trajectory`` with explicit Euler integration.
+    r"""Run ``controller`` on ``episode``.
 
-    .. math:: q_{k+1} = q_k \oplus \dot q_k\,dt,\qquad \dot q_{-1} = 0
+    Each step k: :math:`x_k, J_k` and the SVD once (:class:`KinematicState`), the command
+    ``ẋ_c`` from the episode's :class:`~otmm_qp.simulation.episode.Loop`, the controller's
+    ``q̇_k``, then ``integrator.advance(q_k, q̇_k)`` for :math:`q_{k+1}`.
 
     Args:
-        robot: The arm.
-        controller: Filters + backend.
-        trajectory: Desired motion.
-        q0: Start configuration, shape ``(nq,)`` (already checked against limits).
-        dt: Control period [s], finite and > 0.
-        duration: Simulated time [s], finite and >= 0; ``max(1, round(duration/dt))`` steps.
-        loop_mode: How ``ẋ_c`` is formed (see :mod:`otmm_qp.simulation.loop_modes`).
-        clik_gain: CLIK gain K [1/s].
-        task_weight: Diagonal task weight ``W``, shape ``(n,)``, finite and > 0.
-        experiment: Experiment name recorded in the result.
+        episode: What to run (checked when it was made).
+        controller: Filters + backend; bound to the episode's robot and ``dt`` here.
         on_step: Observer called after each step (e.g. to keep the states a benchmark replays).
+        integrator: The integration stage (default: explicit Euler, :class:`Integrator`).
 
     Returns:
-        The time series. A typed error inside the loop (e.g. an infeasible QP with the
-        ``raise`` policy, or a non-finite ``q0``) stops the run early; the steps done so far
-        are kept and ``error_message`` says why.
-
-    Raises:
-        ParameterError: ``dt``, ``duration``, ``clik_gain``, ``loop_mode`` or ``task_weight``
-            out of range.
-        DimensionError: ``q0`` or ``task_weight`` of the wrong shape.
+        The time series. An error inside a step (an infeasible QP with the ``raise`` policy,
+        any exception from a plugin, a malformed ``q̇``) or a non-finite ``q0`` stops the run
+        early; the steps done so far are kept and ``error_message`` says why.
     """
-    q, weight, recorder = _start_run(
-        robot, controller, q0, dt, duration, loop_mode, clik_gain, task_weight
-    )
-    error_message = _run_steps(
-        robot, controller, trajectory, q, weight, recorder, loop_mode, dt, clik_gain, on_step
-    )
-    return recorder.result(controller, loop_mode, dt, experiment, error_message)
-
-
-def _start_run(
-    robot: Robot,
-    controller: Controller,
-    q0: FloatArray,
-    dt: float,
-    duration: float,
-    loop_mode: str,
-    clik_gain: float,
-    task_weight: FloatArray | None,
-) -> tuple[FloatArray, FloatArray | None, RunRecorder]:
-    """Validate the arguments, bind ``controller``, size the recorder: ``(q, weight, recorder)``."""
-    q, steps, weight = check_run_arguments(
-        robot, q0, dt, duration, loop_mode, clik_gain, task_weight
-    )
+    robot, dt = episode.robot, episode.dt
     controller.bind(robot, dt)
-    return q, weight, RunRecorder(robot, steps, dt)
+    stage = integrator if integrator is not None else Integrator()
+    stage.start(robot, dt)
+    recorder = RunRecorder(robot, episode.steps, dt)
+    error_message = _run_steps(episode, controller, recorder, stage, on_step)
+    return recorder.result(controller, episode.loop.mode, dt, episode.name, error_message)
 
 
 def _run_steps(
-    robot: Robot,
+    episode: Episode,
     controller: Controller,
-    trajectory: Trajectory,
-    q: FloatArray,
-    weight: FloatArray | None,
     recorder: RunRecorder,
-    loop_mode: LoopMode,
-    dt: float,
-    clik_gain: float,
+    stage: Integrator,
     on_step: StepObserver | None,
 ) -> str | None:
-    """The control loop from ``q``, filling ``recorder``; why it stopped early, or None."""
-    qdot_prev = np.zeros(robot.nv)
-    error_message = None if np.all(np.isfinite(q)) else "q0: contains NaN or inf; no step taken"
-    for k in range(len(recorder.t) if error_message is None else 0):
+    """The control loop from ``episode.q0``, filling ``recorder``; why it stopped, or None."""
+    robot, trajectory, dt, weight = (
+        episode.robot,
+        episode.trajectory,
+        episode.dt,
+        episode.task_weight,
+    )
+    command_of, nv = episode.loop.command, robot.nv
+    q = np.array(episode.q0)
+    qdot_prev = np.zeros(nv)
+    if not np.all(np.isfinite(q)):
+        return "q0: contains NaN or inf; no step taken"
+    for k in range(len(recorder.t)):
         tk = float(recorder.t[k])
-        desired, desired_velocity = trajectory.sample(tk)
-        tic = time.perf_counter()
         try:
+            desired, desired_velocity = trajectory.sample(tk)
+            tic = time.perf_counter()
             state = KinematicState.compute(robot, q, weight)
             tracking_error = robot.task_error(desired, state.x)
-            command = commanded_velocity(
-                loop_mode, robot, trajectory, tk, dt, state.x, tracking_error,
-                desired_velocity, clik_gain,
-            )  # fmt: skip
+            command = command_of(
+                robot, trajectory, tk, dt, state.x, tracking_error, desired_velocity
+            )
             output = controller.step(state, command, qdot_prev)
-        except InfeasibleProblem as error:
-            error_message = str(InfeasibleProblem(k, error.detail))
-            break
-        except OtmmError as error:
-            error_message = f"step {k}: {error}"
-            break
-        seconds = time.perf_counter() - tic
-        recorder.record(k, state, command, tracking_error, desired, output, seconds)
+            qdot = _checked_qdot(output, nv)
+            seconds = time.perf_counter() - tic
+            recorder.record(k, state, command, tracking_error, desired, output, seconds)
+        except (Exception, SystemExit) as error:  # plugins are untrusted code
+            return failure_message(k, error)
         if on_step is not None:
             on_step(k, state, command, qdot_prev, output)
-        q = robot.integrate(q, output.qdot, dt)
-        qdot_prev = output.qdot
-    return error_message
+        try:
+            q = stage.advance(q, qdot)
+        except (Exception, SystemExit) as error:  # a robot plugin's integrate
+            return failure_message(k + 1, error)
+        qdot_prev = qdot
+    return None

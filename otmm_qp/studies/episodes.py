@@ -16,8 +16,9 @@ import numpy as np
 
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig
-from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
+from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.drilldown import episode_id
@@ -163,7 +164,7 @@ def _generate_task(
         spec = config.robots[unit.robot]
         weight = np.asarray(spec.task_weight, dtype=float) if spec.task_weight else None
         task = _generator(config, unit.generator).generate(robot, unit.seed, weight)
-    except Exception as error:  # noqa: BLE001 - a failed task is a row, never a stopped study
+    except (Exception, SystemExit) as error:  # a failed task is a row, never a stopped study
         task_error = f"task generation: {one_line(error)}"
     return robot, weight, task, task_error
 
@@ -176,10 +177,32 @@ def _episode_duration(config: StudyConfig, task: Task) -> float:
     return duration
 
 
+def study_episode(
+    config: StudyConfig, robot: Robot, task: Task, weight: FloatArray | None, mode: str
+) -> Episode:
+    """The :class:`Episode` of one task in one loop mode (checked like every run's).
+
+    Raises:
+        OtmmError: The task's start is outside the joint limits, or a value out of range
+            (e.g. more than ``max_steps`` steps).
+    """
+    return Episode(
+        robot,
+        task.trajectory,
+        robot.check_start(task.q0),
+        config.dt,
+        _episode_duration(config, task),
+        Loop(mode, config.clik_gain),  # type: ignore[arg-type]
+        weight,
+        config.name,
+        config.max_steps,
+    )
+
+
 def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
     """Generate the unit's task and run its episodes, appending rows (never raising)."""
     from otmm_qp.runner.build import build_controller
-    from otmm_qp.simulation.simulate import simulate
+    from otmm_qp.runner.episode import run_episode
 
     config, controllers = _study(payload)
     settings = MetricSettings(**config.metrics.model_dump())
@@ -192,30 +215,17 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             row.update(status="error", error_message=task_error, success=False)
             result.rows.append(row)
             continue
-        duration = _episode_duration(config, task)
-        row["duration"] = duration
+        row["duration"] = _episode_duration(config, task)
         try:
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
-            q0 = robot.check_start(task.q0)
-            run = simulate(
-                robot,
-                built,
-                task.trajectory,
-                q0,
-                config.dt,
-                duration,
-                loop_mode=mode,  # type: ignore[arg-type]
-                clik_gain=config.clik_gain,
-                task_weight=weight,
-                experiment=config.name,
-            )
-            metrics = compute_metrics(run, settings)
-        except Exception as error:  # noqa: BLE001 - recorded in the row
+            record = run_episode(study_episode(config, robot, task, weight, mode), built, settings)
+        except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
             row.update(status="error", error_message=one_line(error), success=False)
             result.rows.append(row)
             continue
+        run, metrics = record.result, record.metrics
         row.update({name: metrics.get(name) for name in METRIC_NAMES})
         row.update(speed_ratios(run))
         row["status"] = "ok" if run.error_message is None else "stopped"

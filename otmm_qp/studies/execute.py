@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import signal
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -21,10 +22,16 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from otmm_qp.exceptions import OtmmError
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
+from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
 from otmm_qp.studies.spec import StudyPlan
-from otmm_qp.studies.storage import PartWriter, prepare_directory, stored_keys, write_marker
+from otmm_qp.studies.storage import (
+    PartWriter,
+    prepare_directory,
+    stored_keys,
+    study_id,
+    write_marker,
+)
 
 #: Seconds allowed to connect to an external scheduler.
 CONNECT_TIMEOUT = 10.0
@@ -38,10 +45,6 @@ QUIET_WORKERS = {
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
 }
-
-
-class SchedulerUnreachable(OtmmError):
-    """The Dask scheduler address cannot be reached."""
 
 
 @dataclass
@@ -223,16 +226,37 @@ def run_study(
         The outcome; an interrupt (Ctrl-C, SIGTERM) returns with ``interrupted = True``
         after every finished chunk is stored.
     """
+    from otmm_qp.output.folders import claim_folder
+
+    if scheduler is not None and client is None:
+        scheduler = probe_scheduler(scheduler, CONNECT_TIMEOUT)  # before the folder is touched
+    with claim_folder(out, "study", force):
+        return _run_claimed(plan, out, source, force, client, (workers, scheduler), progress)
+
+
+def _run_claimed(
+    plan: StudyPlan,
+    out: Path,
+    source: str,
+    force: bool,
+    client: Any,
+    where: tuple[int | None, str | None],
+    progress: ProgressHook | None,
+) -> StudyOutcome:
+    """:func:`run_study` in the claimed (locked) folder ``out``."""
     config = plan.config
     prepare_directory(out, config.name, force)
-    done = stored_keys(out)
+    ident = study_id(config.model_dump(mode="json"))
     keys = {e.key for e in plan.episodes}
-    already = len(keys & done)
-    _write_study_marker(out, plan, source)
-    outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=already)
+    stored = stored_keys(out, ident, keys)
+    done = set() if stored.table is None else set(stored.table.column("episode_key").to_pylist())
+    for line in stored.ignored:
+        print(f"otmm-qp: resume ignored {line}", file=sys.stderr)
+    _write_study_marker(out, plan, source, ident)
+    outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
     chunks = make_chunks(plan, done)
     payload = payload_of(plan)
-    writer = PartWriter(out)
+    writer = PartWriter(out, ident)
     written: set[str] = set(done)
     tic = time.perf_counter()
 
@@ -241,20 +265,22 @@ def run_study(
 
     with _sigterm_as_interrupt():
         try:
-            _feed_chunks(consume, payload, chunks, workers, scheduler, client)
+            _feed_chunks(consume, payload, chunks, where[0], where[1], client)
         except KeyboardInterrupt:
             outcome.interrupted = True
     outcome.seconds = time.perf_counter() - tic
     return outcome
 
 
-def _write_study_marker(out: Path, plan: StudyPlan, source: str) -> None:
-    """Write ``study.json``: the study, its source, config, controllers and episode count."""
+def _write_study_marker(out: Path, plan: StudyPlan, source: str, ident: str) -> None:
+    """Write ``study.json``: the study, its id, source, config, controllers and episode keys."""
     config = plan.config
     write_marker(
         out,
         {
             "study": config.name,
+            "study_id": ident,
+            "episode_keys": sorted(e.key for e in plan.episodes),
             "source": source,
             "config": config.model_dump(mode="json"),
             "controllers": [c.name for c in plan.controllers],

@@ -18,10 +18,10 @@ shown as a row and a point, never ranked or tested; their ``reference.*`` column
 from __future__ import annotations
 
 import base64
-import html
 import io
 import math
 import re
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes
 from otmm_qp.studies.drilldown import episode_id
@@ -48,7 +49,7 @@ from otmm_qp.studies.statistics import (
     significant_digits,
     wilson_interval,
 )
-from otmm_qp.studies.storage import read_episodes, read_marker
+from otmm_qp.studies.storage import read_study_folder
 
 #: The reference rows' controller name (the data contract with the oracle).
 ORACLE = "oracle"
@@ -168,22 +169,24 @@ def join_reference(rows: list[dict[str, Any]]) -> None:
 
 
 def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config (from ``study.json``) and its rows, references joined.
+    """The study config and its rows: references joined, success and causes recomputed.
+
+    Only the rows of this study and plan are read (``study.json``).
+
+    What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
+    stderr, one line per reason.
 
     Raises:
-        OtmmError: No study marker or no episodes in ``out``.
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
     """
-    marker = read_marker(out)
-    if marker is None:
-        raise OtmmError(f"{out}: no {'study.json'} here; not a study directory")
-    config = StudyConfig.model_validate(marker["config"])
-    table = read_episodes(out)
-    if table is None or table.num_rows == 0:
+    config, data = read_study_folder(out)
+    for line in data.ignored:
+        print(f"otmm-qp: report ignored {line}", file=sys.stderr)
+    if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = table.to_pylist()
+    rows = data.table.to_pylist()
     join_reference(rows)
     for row in rows:
-        row.setdefault("episode_id", episode_id(str(row.get("episode_key", ""))))
         if not row.get("episode_id"):
             row["episode_id"] = episode_id(str(row.get("episode_key", "")))
         causes = () if _is_oracle(row) else failure_causes(row, config.success)
@@ -844,7 +847,7 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
     """The self-contained HTML page: the Markdown rendered, figures embedded as base64.
 
     Every name (controllers, robots, generators) reaches the page through
-    :func:`html.escape` (in :func:`otmm_qp.output.report.markdown_to_html`).
+    :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.report.markdown_to_html`).
     """
     from otmm_qp.output.report import _CSS, markdown_to_html
 
@@ -871,7 +874,7 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
         else:
             chunk.append(line)
     flush()
-    title = html.escape(f"Study {config.name}")
+    title = escape(f"Study {config.name}")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         f"<title>{title}</title><style>{_CSS}{_STUDY_CSS}</style></head><body>\n"
@@ -885,7 +888,7 @@ def _figure_html(out: Path, relative: str, caption: str) -> str:
     if not path.is_file():
         return ""
     data = base64.b64encode(path.read_bytes()).decode("ascii")
-    label = html.escape(caption)
+    label = escape(caption, "attr")
     return (
         f'<figure><img alt="{label}" src="data:image/png;base64,{data}">'
         f"<figcaption>{label}</figcaption></figure>"

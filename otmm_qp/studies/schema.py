@@ -33,6 +33,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from otmm_qp.config.schema import MetricsConfig, PluginSpec
+from otmm_qp.simulation.episode import DEFAULT_MAX_STEPS
 from otmm_qp.simulation.loop_modes import LoopMode
 
 
@@ -151,6 +152,7 @@ class StudyConfig(_Strict):
     clik_gain: float = Field(10.0, ge=0.0)
     duration: DurationRule = DurationRule()
     chunk_size: int = Field(4, gt=0)
+    max_steps: int = Field(DEFAULT_MAX_STEPS, gt=0)
     metrics: MetricsConfig = MetricsConfig()
     success: SuccessCriteria = SuccessCriteria()
     time_series: TimeSeriesConfig = TimeSeriesConfig()

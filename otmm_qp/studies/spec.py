@@ -233,44 +233,84 @@ def check_plugins(
 ) -> list[tuple[str, str]]:
     """Build every robot, generator and controller once so bad input fails before any work.
 
+    Each robot is built once; each generator draws its first task on each robot (a generator
+    that cannot work on a robot fails here), and every controller is prepared like a run's
+    (:func:`~otmm_qp.runner.prepare.prepare`: one dry-run step on a copy) on the robot's first
+    task, whose episode also meets the step cap.
+
     Returns:
         ``(name, reason)`` of controllers skipped because their peer library is missing.
 
     Raises:
-        ConfigError: Unknown plugin or parameter, with its path.
+        ConfigError: Unknown plugin or parameter, a controller that does not fit a robot, or
+            an episode over ``max_steps``, with its path.
     """
-    from otmm_qp.runner.build import build_controller
+    from otmm_qp.runner.build import build_controller, load_robot
+    from otmm_qp.runner.prepare import prepare
+    from otmm_qp.studies.episodes import study_episode
 
-    for i, robot in enumerate(config.robots):
-        built = registry.create(
-            registry.ROBOTS, robot.robot.type, robot.robot.params, f"{source}: robots.{i}.robot"
-        )
-        if robot.task_weight is not None and len(robot.task_weight) != built.task_dim:
-            raise ConfigError(
-                f"{source}: robots.{i}.task_weight",
-                f"expected {built.task_dim} weights, got {len(robot.task_weight)}",
-            )
-    for j, gen in enumerate(config.generators):
+    robots = [
+        load_robot(spec.robot, f"{source}: robots.{i}.robot")
+        for i, spec in enumerate(config.robots)
+    ]
+    generators = [
         registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
-    for i, robot_spec in enumerate(config.robots):
-        robot = registry.create(
-            registry.ROBOTS, robot_spec.robot.type, robot_spec.robot.params, f"robots.{i}"
-        )
-        weight = np.asarray(robot_spec.task_weight, dtype=float) if robot_spec.task_weight else None
-        for j, gen in enumerate(config.generators):
-            generator = registry.create(registry.TASK_GENERATORS, gen.type, gen.params, "")
-            seed = task_seed(config.seed, robot_spec.name, gen.type, 0)
-            try:  # the first task: a generator that cannot work on this robot fails here
-                generator.generate(robot, seed, weight)
-            except TaskGenerationError as error:
-                raise ConfigError(f"{source}: generators.{j} ({gen.type})", str(error)) from None
-    skipped: list[tuple[str, str]] = []
+        for j, gen in enumerate(config.generators)
+    ]
+    built, skipped = [], []
     for k, controller in enumerate(controllers):
         try:
-            build_controller(controller, f"{source}: controllers.{k} ({controller.name})")
+            built.append(
+                build_controller(
+                    controller,
+                    f"{source}: controllers.{k} ({controller.name})",
+                    config.metrics.blow_up_speed,
+                )
+            )
         except PeerUnavailable as error:
             skipped.append((controller.name, str(error)))
+    for i, (spec, robot) in enumerate(zip(config.robots, robots, strict=True)):
+        weight = None
+        if spec.task_weight is not None:
+            if len(spec.task_weight) != robot.task_dim:
+                raise ConfigError(
+                    f"{source}: robots.{i}.task_weight",
+                    f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
+                )
+            weight = np.asarray(spec.task_weight, dtype=float)
+        tasks = [
+            _first_task(config, spec.name, j, generator, robot, weight, source)
+            for j, generator in enumerate(generators)
+        ]
+        first = tasks[0]
+        field = f"{source}: robots.{i} ({spec.name}) first task of generators.0"
+        try:
+            episode = study_episode(config, robot, first, weight, config.loop_modes[0])
+        except ConfigError as error:
+            where = "duration" if error.field == "duration" else error.field
+            raise ConfigError(f"{field}: {where}", error.message) from None
+        except OtmmError as error:
+            raise ConfigError(field, str(error)) from None
+        prepare(episode, built, f"{source}: robots.{i}", reachable=False)
     return skipped
+
+
+def _first_task(
+    config: StudyConfig,
+    robot_name: str,
+    index: int,
+    generator: Any,
+    robot: Any,
+    weight: Any,
+    source: str,
+) -> Any:
+    """The generator's first task on ``robot``; a generator that cannot work on it is refused."""
+    gen = config.generators[index]
+    seed = task_seed(config.seed, robot_name, gen.type, 0)
+    try:
+        return generator.generate(robot, seed, weight)
+    except TaskGenerationError as error:
+        raise ConfigError(f"{source}: generators.{index} ({gen.type})", str(error)) from None
 
 
 def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:

@@ -2,58 +2,109 @@
 
 Layout of an output directory::
 
-    study.json                    # marker: study name, file, config, counts (contracts §3)
+    study.json                    # marker: study name, id, file, config, episode keys
     episodes/part-<run>-<n>.parquet  # one row per episode, each part written atomically
     timeseries/part-<run>-<n>.parquet  # sampled time series (optional)
 
 Every part is complete or absent (atomic rename), so an interrupted study is always a
-readable dataset; ``read_episodes`` concatenates the parts, promoting column types.
+readable dataset. Each part records the *study id* (a digest of the study's config) in its
+Parquet metadata. Readers (:func:`read_study`, the report, ``--resume``) take only the rows of
+this study and this plan: parts of another study id, symlinked parts or folders, unreadable or
+foreign Parquet files, parts whose column types clash, rows whose episode key the plan does
+not hold, and second copies of an episode are left out, and every reason is reported in
+:attr:`StudyData.ignored`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import io
 import json
-import shutil
+import os
+import stat
 import time
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.exceptions import ConfigError
+from otmm_qp.output.folders import remove_kind_files
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside
+
+if TYPE_CHECKING:
+    from otmm_qp.studies.schema import StudyConfig
 
 MARKER = "study.json"
 EPISODES = "episodes"
 SERIES = "timeseries"
+#: Parquet schema-metadata key holding the study id of a part.
+STUDY_ID_KEY = b"otmm_qp.study_id"
+#: Largest ``study.json`` read [bytes].
+MAX_MARKER_BYTES = 64 * 1024 * 1024
 
 
 class StudyDirectoryError(ConfigError):
     """The output directory holds another study, or cannot be written."""
 
 
+def study_id(config: dict[str, Any]) -> str:
+    """The id of a study: SHA-256 (16 hex digits) of its config's canonical JSON."""
+    text = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _read_regular(path: Path, limit: int) -> bytes:
+    """The bytes of ``path``, refusing a symlink, a non-regular file or more than ``limit``."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise OSError(0, "not a regular file")
+        if info.st_size > limit:
+            raise OSError(0, f"larger than {limit} bytes")
+        with os.fdopen(fd, "rb", closefd=False) as handle:
+            return handle.read(limit + 1)
+    finally:
+        os.close(fd)
+
+
 def read_marker(out: Path) -> dict[str, Any] | None:
-    """The ``study.json`` record of ``out``, or None when there is none."""
+    """The ``study.json`` record of ``out``, or None when there is none.
+
+    Raises:
+        StudyDirectoryError: ``study.json`` is a symlink, not a file, unreadable or not a
+            JSON object.
+    """
     marker = out / MARKER
-    if not marker.is_file():
+    if marker.is_symlink():
+        raise StudyDirectoryError(str(marker), "is a symlink; a study marker must be a plain file")
+    if not marker.exists():
         return None
     try:
-        data = json.loads(marker.read_text())
+        data = json.loads(_read_regular(marker, MAX_MARKER_BYTES).decode("utf-8"))
     except (OSError, ValueError) as error:
-        raise StudyDirectoryError(str(marker), f"unreadable study marker: {error}") from None
-    return data if isinstance(data, dict) else None
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else error
+        raise StudyDirectoryError(str(marker), f"unreadable study marker: {reason}") from None
+    if not isinstance(data, dict):
+        raise StudyDirectoryError(str(marker), "is not a study marker (a JSON object expected)")
+    return data
 
 
 def prepare_directory(out: Path, study: str, force: bool) -> None:
-    """Create ``out`` or check it belongs to ``study``.
+    """Check the (claimed) folder ``out`` belongs to ``study``.
 
-    With ``force``, the dataset of another study in ``out`` is removed first.
+    With ``force``, everything another study wrote in ``out`` (dataset, marker, report and
+    figures) is removed first.
 
     Raises:
-        StudyDirectoryError: ``out`` holds a different study (without ``force``), holds
-            unrelated files, or cannot be created.
+        StudyDirectoryError: ``out`` holds a different study (without ``force``), or an
+            unreadable marker.
     """
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -61,7 +112,17 @@ def prepare_directory(out: Path, study: str, force: bool) -> None:
         raise StudyDirectoryError(
             str(out), f"cannot create the output directory: {error.strerror}"
         ) from None
-    marker = read_marker(out)
+    for name in (EPISODES, SERIES):
+        if (out / name).is_symlink():
+            raise StudyDirectoryError(
+                str(out / name), "is a symlink; the dataset must lie inside the output folder"
+            )
+    try:
+        marker = read_marker(out)
+    except StudyDirectoryError:
+        if not force:
+            raise
+        marker = {}
     if marker is not None and marker.get("study") != study:
         if not force:
             raise StudyDirectoryError(
@@ -69,11 +130,7 @@ def prepare_directory(out: Path, study: str, force: bool) -> None:
                 f"holds study {marker.get('study')!r}, not {study!r}; "
                 "choose another --out or pass --force to replace it",
             )
-        for name in (EPISODES, SERIES):
-            target = ensure_inside(out, out / name)
-            if target.is_dir():
-                shutil.rmtree(target)
-        (out / MARKER).unlink()
+        remove_kind_files(out, "study")
 
 
 def write_marker(out: Path, record: dict[str, Any]) -> None:
@@ -98,10 +155,14 @@ def _table(rows: list[dict[str, Any]]) -> pa.Table:
 
 
 class PartWriter:
-    """Writes numbered Parquet parts of one run into ``out/episodes`` and ``out/timeseries``."""
+    """Writes numbered Parquet parts of one run into ``out/episodes`` and ``out/timeseries``.
 
-    def __init__(self, out: Path) -> None:
+    Each part carries ``study`` (a :func:`study_id`) in its Parquet metadata.
+    """
+
+    def __init__(self, out: Path, study: str = "") -> None:
         self.out = out
+        self.study = study
         self.run = time.strftime("%Y%m%dT%H%M%S") + f"-{time.time_ns() % 1_000_000:06d}"
         self.count = 0
 
@@ -111,6 +172,10 @@ class PartWriter:
             directory.mkdir(exist_ok=True)
         except OSError as error:
             raise StudyDirectoryError(str(directory), f"cannot write: {error.strerror}") from None
+        if self.study:
+            metadata = dict(table.schema.metadata or {})
+            metadata[STUDY_ID_KEY] = self.study.encode("ascii")
+            table = table.replace_schema_metadata(metadata)
         buffer = io.BytesIO()
         pq.write_table(table, buffer)
         path = directory / f"part-{self.run}-{self.count:06d}.parquet"
@@ -134,36 +199,191 @@ class PartWriter:
         self.count += 1
 
 
-def _read_parts(folder: Path, columns: list[str] | None = None) -> pa.Table | None:
-    if not folder.is_dir():
+@dataclass
+class StudyData:
+    """The rows of one study read from its folder, and what was left out.
+
+    Attributes:
+        table: The rows (one per episode key, first stored copy), or None when there are none.
+        ignored: One line per reason something was left out (part names cut, counts).
+    """
+
+    table: pa.Table | None
+    ignored: list[str] = field(default_factory=list)
+
+
+def _part_study(part: pq.ParquetFile) -> str | None:
+    metadata = part.schema_arrow.metadata or {}
+    value = metadata.get(STUDY_ID_KEY)
+    return value.decode("ascii", "replace") if value is not None else None
+
+
+def _open_part(path: Path) -> pq.ParquetFile:
+    """A Parquet file opened without following symlinks (at most 2 GiB)."""
+    return pq.ParquetFile(io.BytesIO(_read_regular(path, 2 * 1024**3)))
+
+
+def _key_column(table: pa.Table) -> list[Any] | None:
+    if "episode_key" not in table.column_names:
         return None
-    tables = []
-    for part in sorted(folder.glob("part-*.parquet")):
+    column = table.column("episode_key")
+    if not pa.types.is_string(column.type) and not pa.types.is_large_string(column.type):
+        return None
+    return column.to_pylist()
+
+
+def read_study(
+    out: Path,
+    folder: str = EPISODES,
+    study: str | None = None,
+    keys: set[str] | None = None,
+    columns: list[str] | None = None,
+) -> StudyData:
+    """The rows of study ``study`` in ``out/folder`` whose episode key ``keys`` holds.
+
+    Args:
+        out: The study folder.
+        folder: :data:`EPISODES` or :data:`SERIES`.
+        study: The study id parts must carry (None: any; parts without an id are taken).
+        keys: Episode keys of the plan (None: any key).
+        columns: Columns to keep (those present), or all.
+
+    Returns:
+        The rows, deduplicated by episode key for :data:`EPISODES` (first part in name order
+        wins), and the reasons for what was left out.
+    """
+    ignored: Counter[str] = Counter()
+    directory = out / folder
+    if directory.is_symlink():
+        return StudyData(None, [f"{folder}/ is a symlink out of the folder: not read"])
+    if not directory.is_dir():
+        return StudyData(None)
+    tables: list[pa.Table] = []
+    schema: pa.Schema | None = None
+    seen: set[str] = set()
+    for path in sorted(directory.iterdir()):
+        if not (path.name.startswith("part-") and path.name.endswith(".parquet")):
+            continue
+        if path.is_symlink():
+            ignored["symlinked parts"] += 1
+            continue
         try:
-            table = pq.read_table(part)
-        except (OSError, pa.ArrowInvalid) as error:
-            raise OtmmError(f"{part}: unreadable Parquet part: {error}") from None
+            part = _open_part(path)
+            if study is not None and _part_study(part) not in (None, study):
+                ignored["parts of another study (or of earlier settings of this one)"] += 1
+                continue
+            table = part.read()
+        except (OSError, pa.ArrowException, ValueError):
+            ignored["unreadable or non-Parquet parts"] += 1
+            continue
+        table = table.replace_schema_metadata(None)
+        key_values = _key_column(table)
+        if key_values is None:
+            ignored["parts without a text episode_key column (not otmm-qp parts)"] += 1
+            continue
         if columns is not None:
             table = table.select([c for c in columns if c in table.column_names])
-        tables.append(table)
+        try:
+            merged = (
+                table.schema
+                if schema is None
+                else pa.unify_schemas([schema, table.schema], promote_options="permissive")
+            )
+        except (pa.ArrowException, ValueError):
+            ignored["parts whose column types clash with the other parts"] += 1
+            continue
+        mask = []
+        for key in key_values:
+            if keys is not None and key not in keys:
+                ignored["rows of episodes not in this study's plan"] += 1
+                mask.append(False)
+            elif folder == EPISODES and key in seen:
+                ignored["second copies of an episode"] += 1
+                mask.append(False)
+            else:
+                mask.append(True)
+        if folder == EPISODES:
+            seen.update(k for k, m in zip(key_values, mask, strict=True) if m)
+        if not any(mask):
+            continue
+        tables.append(table.filter(pa.array(mask, pa.bool_())))
+        schema = merged
+    lines = [f"{count} {reason}" for reason, count in ignored.items()]
     if not tables:
-        return None
-    return pa.concat_tables(tables, promote_options="permissive")
+        return StudyData(None, lines)
+    return StudyData(pa.concat_tables(tables, promote_options="permissive"), lines)
+
+
+def _marker_scope(out: Path) -> tuple[str | None, set[str] | None]:
+    """The study id and plan keys ``study.json`` records (None where it records none)."""
+    try:
+        marker = read_marker(out) or {}
+    except StudyDirectoryError:
+        return None, None
+    ident = marker.get("study_id")
+    keys = marker.get("episode_keys")
+    return (
+        ident if isinstance(ident, str) else None,
+        {k for k in keys if isinstance(k, str)} if isinstance(keys, list) else None,
+    )
 
 
 def read_episodes(out: Path, columns: list[str] | None = None) -> pa.Table | None:
-    """Every stored episode row (all parts), or None when there are none."""
-    return _read_parts(out / EPISODES, columns)
+    """The stored episode rows of the study ``study.json`` names (see :func:`read_study`)."""
+    ident, keys = _marker_scope(out)
+    return read_study(out, EPISODES, ident, keys, columns).table
 
 
 def read_series(out: Path) -> pa.Table | None:
-    """Every stored time-series row, or None."""
-    return _read_parts(out / SERIES)
+    """The stored time-series rows of the study ``study.json`` names, or None."""
+    ident, keys = _marker_scope(out)
+    return read_study(out, SERIES, ident, keys).table
 
 
-def stored_keys(out: Path) -> set[str]:
-    """Episode keys already in the dataset."""
-    table = read_episodes(out, ["episode_key"])
-    if table is None or "episode_key" not in table.column_names:
-        return set()
-    return set(table.column("episode_key").to_pylist())
+def stored_keys(out: Path, study: str | None = None, keys: set[str] | None = None) -> StudyData:
+    """Episode keys of study ``study`` and plan ``keys`` already stored (``--resume``).
+
+    Returns:
+        A :class:`StudyData` with only the ``episode_key`` column, and what was left out.
+    """
+    return read_study(out, EPISODES, study, keys, ["episode_key"])
+
+
+def read_study_folder(out: Path) -> tuple[StudyConfig, StudyData]:
+    """The validated config of the study in ``out`` and its episode rows (this study's only).
+
+    Raises:
+        StudyDirectoryError: No ``study.json``, or one without a valid study config.
+    """
+    from pydantic import ValidationError
+
+    from otmm_qp.studies.schema import StudyConfig
+
+    marker = read_marker(out)
+    if marker is None:
+        raise StudyDirectoryError(str(out), f"no {MARKER} here; not a study directory")
+    if not isinstance(marker.get("config"), dict):
+        raise StudyDirectoryError(str(out / MARKER), "holds no study config ('config' object)")
+    try:
+        config = StudyConfig.model_validate(marker["config"])
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "config"
+        raise StudyDirectoryError(
+            str(out / MARKER), f"config.{where}: {first['msg']}"[:300]
+        ) from None
+    ident, keys = _marker_scope(out)
+    return config, read_study(out, EPISODES, ident, keys)
+
+
+@contextlib.contextmanager
+def writing_report(out: Path) -> Iterator[None]:
+    """Turn an OS error while writing a study's report into one :class:`StudyDirectoryError`.
+
+    A read-only or full folder then gives one line; the dataset is untouched.
+    """
+    try:
+        yield
+    except OSError as error:
+        reason = error.strerror or str(error)
+        raise StudyDirectoryError(str(out), f"cannot write the study report: {reason}") from None

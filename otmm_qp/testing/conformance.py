@@ -44,7 +44,7 @@ from otmm_qp.config.load import embedded_config_path, load_config
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.exceptions import ConfigError, PeerUnavailable, PluginValidationError
 from otmm_qp.metrics.metrics import MetricSettings
-from otmm_qp.runner.build import prepare_experiment
+from otmm_qp.runner.prepare import prepare_experiment
 from otmm_qp.runner.run import RunRecord, run_experiment
 
 #: Paper experiments in the suite.

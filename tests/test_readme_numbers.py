@@ -41,3 +41,36 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
         for value in (max_error, peak, jump):
             # The README shows the median; the report adds its bootstrap interval after it.
             assert re.search(rf"\| {re.escape(value)} \[", line), (controller, value, line)
+    _check_paired_sentence(report)
+
+
+def _check_paired_sentence(report: str) -> None:
+    """The README's paired OTMM + pinv vs pinv counts and Holm p are the report's."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    found = re.search(
+        r"strictly lower max error than pinv on (\d+)–(\d+) of the (\d+) 2-link tasks "
+        r"\(tied on (\d+)–(\d+), higher on (\d+)–(\d+)\); the Wilcoxon test favours "
+        r"OTMM \+ pinv \(Holm p ≤ ([0-9.]+)\)",
+        text,
+    )
+    assert found, "the README's paired sentence changed its form"
+    lower, ties, higher, holm = (
+        sorted(map(int, found.group(1, 2))),
+        sorted(map(int, found.group(4, 5))),
+        sorted(map(int, found.group(6, 7))),
+        float(found.group(8)),
+    )
+    table = report[report.index("### Paired comparisons on planar2: max_error") :]
+    table = table[: table.index("\n###")]
+    rows = [
+        [c.strip() for c in line.strip("|").split("|")]
+        for line in table.splitlines()
+        if line.startswith("| OTMM+pinv") and "| pinv |" in line
+    ]
+    assert len(rows) == 2
+    assert sorted(int(r[3]) for r in rows) == lower
+    assert sorted(int(r[4]) for r in rows) == ties
+    assert sorted(int(r[5]) for r in rows) == higher
+    assert all(r[2] == found.group(3) for r in rows)
+    assert max(float(r[9]) for r in rows) == holm
+    assert all(r[10].startswith("OTMM+pinv") for r in rows)

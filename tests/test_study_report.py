@@ -20,7 +20,13 @@ from otmm_qp.runner.run import run_suite
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.episodes import TIMING_METRICS
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.report import RELATIVE_ERROR, load_rows, write_study_report
+from otmm_qp.studies.report import (
+    RELATIVE_ERROR,
+    TaskGroup,
+    group_verdict,
+    load_rows,
+    write_study_report,
+)
 from otmm_qp.studies.schema import SuccessCriteria
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
@@ -244,3 +250,28 @@ def test_unknown_episode_is_one_line_exit_2(
     assert err.count("\n") == 0 and "no episode '0123456789'" in err
     assert main(["study", "show", str(study), "--episode", "xyz"]) == 2
     assert "not an episode id" in capsys.readouterr().err
+
+
+def _synthetic(name: str, index: int, success: bool) -> dict[str, Any]:
+    return {
+        "controller": name,
+        "robot": "r",
+        "generator": "g",
+        "generator_params": "{}",
+        "task_index": index,
+        "loop_mode": "clik",
+        "success": success,
+    }
+
+
+def test_group_verdict_names_the_pick_and_its_paired_evidence() -> None:
+    rows = [_synthetic("a", i, True) for i in range(30)]
+    rows += [_synthetic("b", i, i < 5) for i in range(30)]
+    rows += [_synthetic("c", i, i != 0) for i in range(30)]
+    text = group_verdict(TaskGroup("singular crossings", "test tasks", rows))
+    assert "pick **a** (success 100 %)" in text
+    assert "not separated from it by the paired test: c (97 %)" in text
+    assert "the closest b (17 %: a alone succeeds on 25 tasks, b alone on 0" in text
+    tied = [_synthetic(n, i, i % 2 == 0) for n in "xy" for i in range(10)]
+    text = group_verdict(TaskGroup("beyond-reach motion", "test tasks", tied))
+    assert "no paired test separates the controllers" in text and "pick" not in text

@@ -6,7 +6,8 @@ An episode row is judged by one of two readings, chosen per task by the referenc
 * **achievable** (or no reference stored): the tolerances hold —
   ``max_error ≤ max_position_error`` [m] and ``max_orientation_error ≤ max_orientation_error``
   [rad];
-* **unachievable** (``reference.achievable`` is false): *graceful* —
+* **unachievable** (``reference.achievable`` is false and ``reference.status`` is not
+  ``failed``): *graceful* —
   ``max_error ≤ f_e · reference.max_error`` (and the same for orientation when the reference
   has one), back on the path at the end
   (``final_error ≤ max(max_position_error, f_e · reference.final_error)`` when the
@@ -87,8 +88,14 @@ def _above(value: float, bound: float | None) -> bool:
 
 
 def is_achievable(row: dict[str, Any]) -> bool:
-    """The task's reference found it achievable, or no reference says otherwise."""
+    """Whether the row is judged by the tolerances (not by the graceful criteria).
+
+    True when the reference found the task achievable, or no reference says otherwise (none
+    stored, or it ``failed``: its best error is unknown).
+    """
     achievable = row.get("reference.achievable")
+    if row.get("reference.status") == "failed":
+        return True
     return achievable is None or bool(achievable) or _is_nan(achievable)
 
 

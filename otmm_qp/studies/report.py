@@ -32,7 +32,7 @@ import numpy as np
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
-from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes
+from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
 from otmm_qp.studies.drilldown import episode_id
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
@@ -323,11 +323,7 @@ def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
             TaskGroup(
                 "beyond-reach motion",
                 "tasks the reference finds unachievable (judged by the graceful criteria)",
-                [
-                    r
-                    for r in own
-                    if _known(r.get("reference.achievable")) and not r["reference.achievable"]
-                ],
+                [r for r in own if not is_achievable(r)],
             ),
             TaskGroup(
                 "limit-bound motion",
@@ -376,18 +372,24 @@ def group_verdict(group: TaskGroup) -> str:
     rates = {name: _rate(f)[0] for name, f in flags.items()}
     tests = paired_success(flags)
     ranking = paired_ranking(rates, tests, higher_is_better=True)
+    if len(rates) == 1:
+        name, rate = next(iter(rates.items()))
+        return head + f"only {name} ran (success {_pct(rate)})."
     if all(rate == 0.0 for rate in rates.values()):
         return head + "no controller succeeds on any of them."
     top = [r for r in ranking if r.rank == 1]
     best = max(top, key=lambda r: (rates[r.name], r.name))
-    text = head + f"pick **{best.name}** (success {_pct(rates[best.name])})"
     if len(top) == len(ranking):
         return (
-            text
-            + "; no paired test separates the controllers ("
-            + ", ".join(f"{r.name} {_pct(rates[r.name])}" for r in ranking if r.name != best.name)
+            head
+            + "no paired test separates the controllers, so none is to be preferred here ("
+            + ", ".join(
+                f"{r.name} {_pct(rates[r.name])}"
+                for r in sorted(ranking, key=lambda r: (-rates[r.name], r.name))
+            )
             + ")."
         )
+    text = head + f"pick **{best.name}** (success {_pct(rates[best.name])})"
     others = [r for r in top if r.name != best.name]
     if others:
         text += "; not separated from it by the paired test: " + ", ".join(

@@ -7,12 +7,11 @@ from typing import Literal
 
 import numpy as np
 
-from otmm_qp.backends.backend import BackendOutput
-from otmm_qp.exceptions import ParameterError
+from otmm_qp.backends.backend import BackendOutput, damping_weight
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.manipulability import manipulability_gradient
-from otmm_qp_controllers.qp import QpBackend
+from otmm_qp_controllers.qp import DEFAULT_REGULARIZATION, QpBackend
 
 from .secondary_tasks import finite_number
 
@@ -37,17 +36,20 @@ class ManipulabilityQpBackend(QpBackend):
     term moves the arm toward higher manipulability, on a square one it trades task accuracy
     for it (unlike the null-space ascent of ``manipulability``). k = 0 is the ``qp`` backend.
 
-    Built on today's :class:`~otmm_qp_controllers.qp.QpBackend` with no change to it: its
+    Built on :class:`~otmm_qp_controllers.qp.QpBackend` with no change to it: its
     posture term :math:`\tfrac12 w_p\|\dot q - \dot q_p\|^2` is
     :math:`\tfrac12 w_p\|\dot q\|^2 - w_p\dot q_p^\top\dot q` + const, so with
-    :math:`w_p = \mu/2`, the damping set to :math:`\mu/2` and :math:`\dot q_p = (k/w_p)\nabla_q w`
-    the objective above is met exactly (fast path and QP alike).
+    :math:`w_p = \mu/2`, the formulation's μ set to :math:`\mu/2` and
+    :math:`\dot q_p = (k/w_p)\nabla_q w` the objective above is met exactly (fast path and QP
+    alike).
 
     Args:
         manipulability_weight: k ≥ 0 [(task units)²/(rad/s) per unit of ∂w/∂q]. The
             null-space speed it asks for is about :math:`(k/\mu)\|\nabla_q w\|`, so k is
             to be read against μ (default 1e-4 with μ = 1e-3: 0.1 rad/s per unit gradient).
-        damping: μ > 0, the weight of ½‖q̇‖² (as ``qp``'s ``damping``).
+        damping: λ > 0 [task units], μ = λ² (as ``qp``'s ``damping``).
+        regularization: μ > 0, the weight of ½‖q̇‖², instead of ``damping`` (10⁻³ when
+            neither is given).
         solver: As ``qp``.
         limit_gain: As ``qp``.
         acceleration_limit: As ``qp``.
@@ -60,35 +62,35 @@ class ManipulabilityQpBackend(QpBackend):
     def __init__(
         self,
         manipulability_weight: float = 1e-4,
-        damping: float = 1e-3,
+        damping: float | None = None,
+        regularization: float | None = None,
         solver: str = "daqp",
-        limit_gain: float = 0.5,
+        limit_gain: float | None = None,
         acceleration_limit: float | Sequence[float] | None = None,
         infeasible_policy: Literal["raise", "hold", "dls"] = "raise",
         fast_path: bool = True,
     ) -> None:
         weight = finite_number("manipulability_weight", manipulability_weight)
-        if not (isinstance(damping, int | float) and np.isfinite(damping) and damping > 0.0):
-            raise ParameterError("damping", f"must be a finite number > 0, got {damping!r:.40}")
-        split = 0.5 * float(damping) if weight > 0.0 else float(damping)
+        mu = damping_weight(damping, regularization, DEFAULT_REGULARIZATION, positive=True)
+        split = 0.5 * mu if weight > 0.0 else mu
         super().__init__(
-            damping=split,
+            regularization=split,
             solver=solver,
             limit_gain=limit_gain,
             acceleration_limit=acceleration_limit,
-            posture_weight=(float(damping) - split) if weight > 0.0 else 0.0,
+            posture_weight=(mu - split) if weight > 0.0 else 0.0,
             infeasible_policy=infeasible_policy,
             fast_path=fast_path,
         )
         self.manipulability_weight = weight
-        self.total_damping = float(damping)
+        self.total_damping = mu
         self._factor = float(np.sqrt(self.total_damping))  # report λ = √μ as every DLS does
         self._gradient: FloatArray | None = None
 
     def _posture(self, theta: FloatArray) -> FloatArray:
         """``q̇_p = (k / w_p) ∇_q w`` [rad/s]: the linear term through the posture slot."""
         assert self._gradient is not None  # noqa: S101 - set by solve before the parent runs
-        return (self.manipulability_weight / self.posture_weight) * self._gradient
+        return (self.manipulability_weight / self.formulation.posture_weight) * self._gradient
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray

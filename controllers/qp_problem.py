@@ -1,254 +1,108 @@
-r"""The QP differential-IK formulation, pure: joint-velocity boxes and the QP data.
-
-Every joint limit of the velocity-level problem is a box on ``q̇`` (shape ``(nv,)``):
+r"""The QP differential-IK formulation, pure: the closed-form minimiser and the QP data.
 
 .. math::
-    \underbrace{-\dot q_{max}}_{\text{velocity}} \le \dot q \le \dot q_{max},\qquad
-    \underbrace{-g\frac{\theta - \theta_{min}}{dt}}_{\text{position}} \le \dot q \le
-    g\frac{\theta_{max} - \theta}{dt},\qquad
-    \underbrace{\dot q_{prev} - a_{max}dt}_{\text{acceleration}} \le \dot q \le
-    \dot q_{prev} + a_{max}dt
+    \min_{\dot q}\ \tfrac12\|J_w\dot q - \dot x_w\|^2 + \tfrac12\mu\|\dot q\|^2
+    + \tfrac12 w_p\|\dot q - \dot q_p\|^2 \quad\text{s.t.}\quad lb \le \dot q \le ub,
+    \quad c_j^\top\dot q \ge l_j
 
-so the feasible set is their intersection ``[lb, ub]`` and it is empty exactly when some
-``lb_i > ub_i`` (e.g. a start outside the position limits farther than ``v_max·dt/g``).
-
-Each equation is written once. :func:`velocity_bounds` and :func:`build_qp` take an optional
-``out=`` to write into preallocated arrays (the per-step path of the backends); without it
-they allocate (the reference path). Building is kept apart from solving
-(:mod:`otmm_qp_controllers.qp_solvers`).
+with ``μ = λ²`` (λ the DLS damping factor) and the box ``[lb; ub]`` of the step's limits
+(:mod:`otmm_qp.limits`). :class:`QpFormulation` holds the cost; its
+:meth:`~QpFormulation.unconstrained` is the minimiser without bounds from the shared SVD (the
+fast path) and :meth:`~QpFormulation.build` writes the QP into preallocated arrays
+(:func:`build_qp`). :func:`active_bound` and :func:`clip_into_box` read a solution against the
+box. Solving lives in :mod:`otmm_qp_controllers.qp_solvers`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
-from otmm_qp.exceptions import DimensionError, ParameterError
+from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import KinematicState
 from otmm_qp_controllers.qp_solvers.problem import BIG, QpProblem
-from otmm_qp_controllers.qp_solvers.qpsolvers_session import SOLVER_OPTIONS
 
 __all__ = [
     "BIG",
-    "SOLVER_OPTIONS",
-    "JointLimits",
+    "QpFormulation",
     "QpProblem",
-    "VelocityBox",
     "active_bound",
     "build_qp",
-    "check_limit_parameters",
     "clip_into_box",
-    "per_joint",
-    "velocity_bounds",
-    "velocity_box",
 ]
 
 
-def check_limit_parameters(
-    limit_gain: float,
-    infeasible_policy: str,
-    policies: Sequence[str],
-    acceleration_limit: float | Sequence[float] | None,
-) -> None:
-    """Validate the joint-limit parameters shared by the QP backends.
-
-    Raises:
-        ParameterError: ``limit_gain`` outside (0, 1], an unknown ``infeasible_policy``, or an
-            ``acceleration_limit`` that is not > 0 [rad/s²].
-    """
-    if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
-        raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
-    if infeasible_policy not in policies:
-        raise ParameterError(
-            "infeasible_policy",
-            f"must be one of {', '.join(policies)}, got {infeasible_policy!r}",
-        )
-    if acceleration_limit is not None:
-        acc = np.asarray(acceleration_limit, dtype=float)
-        if not np.all(acc > 0.0):
-            raise ParameterError("acceleration_limit", f"must be > 0 [rad/s²], got {acc.tolist()}")
-
-
-def per_joint(value: float | Sequence[float] | None, name: str, nv: int) -> FloatArray | None:
-    """A scalar or ``(nv,)`` parameter as an ``(nv,)`` array (None stays None).
-
-    Raises:
-        DimensionError: ``value`` is neither a scalar nor of shape ``(nv,)``.
-    """
-    if value is None:
-        return None
-    array = np.asarray(value, dtype=float)
-    if array.ndim == 0:
-        array = np.full(nv, float(array))
-    if array.shape != (nv,):
-        raise DimensionError(name, (nv,), array.shape)
-    return array
-
-
-class JointLimits(NamedTuple):
-    """The step-invariant joint-limit data of one run.
-
-    Attributes:
-        theta: ``[θ_min; θ_max]`` [rad or m], shape ``(2, nv)`` (±inf allowed).
-        speed: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
-        negative_speed: ``−q̇_max`` [rad/s], shape ``(nv,)``.
-        gain: ``g/dt`` [1/s], the position-limit gain per control period.
-        acceleration_step: ``a_max·dt`` [rad/s], shape ``(nv,)``, or None (no limit).
-    """
-
-    theta: FloatArray
-    speed: FloatArray
-    negative_speed: FloatArray
-    gain: float
-    acceleration_step: FloatArray | None
-
-    @classmethod
-    def make(
-        cls,
-        position_limits: tuple[FloatArray, FloatArray],
-        velocity_limits: FloatArray,
-        dt: float,
-        limit_gain: float,
-        acceleration_limit: FloatArray | None,
-    ) -> JointLimits:
-        """From the robot's limits, ``dt`` [s], ``g ∈ (0, 1]`` and ``a_max`` [rad/s²] or None."""
-        speed = np.array(velocity_limits, dtype=float)
-        theta = np.array(position_limits, dtype=float).reshape(2, speed.shape[0])
-        step = None if acceleration_limit is None else acceleration_limit * dt
-        return cls(theta, speed, -speed, limit_gain / dt, step)
-
-
-def position_box(theta: FloatArray, limits: JointLimits, out: FloatArray) -> FloatArray:
-    r"""``[(g/dt)(θ_min − θ); (g/dt)(θ_max − θ)]`` [rad/s] into ``out`` (2, nv).
-
-    Infinite limits give infinite bounds (θ is finite, ``g/dt > 0``: no NaN can arise).
-    """
-    np.subtract(limits.theta, theta, out=out)
-    return np.multiply(limits.gain, out, out=out)
-
-
-def velocity_bounds(
-    theta: FloatArray,
-    qdot_prev: FloatArray,
-    limits: JointLimits,
-    out: FloatArray | None = None,
-    scratch: FloatArray | None = None,
-) -> FloatArray:
-    r"""The intersection ``[lb; ub]`` of the velocity, position and acceleration boxes.
+@dataclass(frozen=True)
+class QpFormulation:
+    r"""The cost of the differential-IK QP (pure: no per-run or per-step state).
 
     .. math::
-        lb = \max(-\dot q_{max},\ (g/dt)(\theta_{min}-\theta),\ \dot q_{prev}-a_{max}dt),\quad
-        ub = \min(\dot q_{max},\ (g/dt)(\theta_{max}-\theta),\ \dot q_{prev}+a_{max}dt)
-
-    Args:
-        theta: Joint coordinates [rad or m], shape ``(nv,)``.
-        qdot_prev: Previous joint velocity [rad/s], shape ``(nv,)``.
-        limits: The run's :class:`JointLimits`.
-        out: Where to write ``[lb; ub]``, shape ``(2, nv)``; allocated when None.
-        scratch: Work array of shape ``(2, nv)``; allocated when None.
-
-    Returns:
-        ``out`` [rad/s], shape ``(2, nv)``.
-    """
-    nv = limits.speed.shape[0]
-    out = np.empty((2, nv)) if out is None else out
-    scratch = np.empty((2, nv)) if scratch is None else scratch
-    lower, upper = out[0], out[1]
-    position_box(theta, limits, scratch)
-    np.maximum(limits.negative_speed, scratch[0], out=lower)
-    np.minimum(limits.speed, scratch[1], out=upper)
-    if limits.acceleration_step is not None:
-        np.subtract(qdot_prev, limits.acceleration_step, out=scratch[0])
-        np.maximum(lower, scratch[0], out=lower)
-        np.add(qdot_prev, limits.acceleration_step, out=scratch[1])
-        np.minimum(upper, scratch[1], out=upper)
-    return out
-
-
-class VelocityBox(NamedTuple):
-    """Per-joint boxes on ``q̇`` [rad/s], each ``(lower, upper)`` of shape ``(nv,)``.
+        f(\dot q) = \tfrac12\|J_w\dot q - \dot x_w\|^2 + \tfrac12\mu\|\dot q\|^2
+        + \tfrac12 w_p\|\dot q - \dot q_p\|^2
 
     Attributes:
-        velocity: Joint speed limits.
-        position: Position limits turned into velocity bounds with gain ``g``.
-        acceleration: Acceleration limits around the previous ``q̇`` (±inf when unused).
-        lower: Intersection lower bound ``lb``.
-        upper: Intersection upper bound ``ub``.
+        mu: ``μ = λ² > 0``, the weight of ``½‖q̇‖²`` [task units² / (rad/s)²].
+        posture_weight: ``w_p ≥ 0`` of the posture cost (0: none).
+
+    Raises:
+        ParameterError: ``mu`` not a finite number > 0, or ``posture_weight`` < 0.
     """
 
-    velocity: tuple[FloatArray, FloatArray]
-    position: tuple[FloatArray, FloatArray]
-    acceleration: tuple[FloatArray, FloatArray]
-    lower: FloatArray
-    upper: FloatArray
+    mu: float
+    posture_weight: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Validate both weights."""
+        if not (math.isfinite(self.mu) and self.mu > 0.0):
+            raise ParameterError("damping", f"λ² must be a finite number > 0, got {self.mu}")
+        if not (math.isfinite(self.posture_weight) and self.posture_weight >= 0.0):
+            raise ParameterError("posture_weight", f"must be >= 0, got {self.posture_weight}")
 
     @property
-    def empty(self) -> bool:
-        """Whether no ``q̇`` satisfies every box."""
-        return bool(np.any(self.lower > self.upper))
+    def damping(self) -> float:
+        """The damping factor ``λ = √μ`` [task units] (``BackendOutput.damping``)."""
+        return float(np.sqrt(self.mu))
 
-    def conflict(self, joint_names: tuple[str, ...]) -> str:
-        """One-line description of the first joint whose box is empty."""
-        i = int(np.argmax(self.lower - self.upper))
-        name = joint_names[i] if i < len(joint_names) else f"#{i}"
-        return (
-            f"joint {name!r}: velocity box [{self.velocity[0][i]:.6g}, {self.velocity[1][i]:.6g}],"
-            f" position box [{self.position[0][i]:.6g}, {self.position[1][i]:.6g}],"
-            f" acceleration box [{self.acceleration[0][i]:.6g}, {self.acceleration[1][i]:.6g}]"
-            " do not intersect"
-        )
+    def unconstrained(
+        self, state: KinematicState, xdot: FloatArray, posture: FloatArray | None
+    ) -> FloatArray:
+        r"""The minimiser of :math:`f` without bounds, from the shared SVD [rad/s], ``(nv,)``.
 
-    def relaxed(self) -> tuple[FloatArray, FloatArray]:
-        r"""A non-empty box honouring the limits by priority: velocity, position, acceleration.
+        .. math::
+            \dot q^* = V\,\mathrm{diag}\Big(\frac{1}{\sigma_i^2+\mu'}\Big)V^\top b
+            + \frac{1}{\mu'}(I - VV^\top)b,\qquad b = J_w^\top\dot x_w + w_p\dot q_p,
+            \ \mu' = \mu + w_p
 
-        Starting from the velocity box, each next box is intersected when the intersection is
-        non-empty; otherwise the current box shrinks to its point nearest to that box. A joint
-        beyond its position limit thus moves back as fast as its speed limit allows.
+        (without posture, DLS with ``λ² = μ``:
+        :math:`\dot q^* = V\,\mathrm{diag}(\sigma_i/(\sigma_i^2+\mu))U^\top\dot x_w`).
+
+        Args:
+            state: The step's kinematic state (``U``, ``sigma``, ``Vt``).
+            xdot: ``ẋ_w``, shape ``(n,)``.
+            posture: ``q̇_p`` [rad/s], shape ``(nv,)``, or None (no posture cost).
         """
-        lower, upper = self.velocity[0].copy(), self.velocity[1].copy()
-        for lo, hi in (self.position, self.acceleration):
-            new_lower, new_upper = np.maximum(lower, lo), np.minimum(upper, hi)
-            clash = new_lower > new_upper
-            nearest = np.clip(np.where(hi < lower, hi, lo), lower, upper)
-            lower = np.where(clash, nearest, new_lower)
-            upper = np.where(clash, nearest, new_upper)
-        return lower, upper
+        sigma, Vt = state.sigma, state.Vt
+        if posture is None:
+            gains = sigma / (sigma * sigma + self.mu)
+            return np.asarray(((xdot @ state.U) * gains) @ Vt)
+        mu = self.mu + self.posture_weight
+        b = Vt.T @ (sigma * (state.U.T @ xdot)) + self.posture_weight * posture
+        c = Vt @ b
+        return np.asarray(Vt.T @ (c / (sigma * sigma + mu)) + (b - Vt.T @ c) / mu)
 
-
-def velocity_box(
-    theta: FloatArray,
-    position_limits: tuple[FloatArray, FloatArray],
-    velocity_limits: FloatArray,
-    qdot_prev: FloatArray,
-    dt: float,
-    limit_gain: float,
-    acceleration_limit: FloatArray | None,
-) -> VelocityBox:
-    r"""Every joint-velocity box at joint coordinates ``theta`` (pure; see :func:`velocity_bounds`).
-
-    Args:
-        theta: Joint coordinates [rad or m], shape ``(nv,)``.
-        position_limits: ``(θ_min, θ_max)``, shapes ``(nv,)`` (±inf allowed).
-        velocity_limits: ``q̇_max`` [rad/s], shape ``(nv,)`` (inf allowed).
-        qdot_prev: Previous joint velocity [rad/s], shape ``(nv,)``.
-        dt: Control period [s].
-        limit_gain: ``g ∈ (0, 1]``: fraction of the remaining distance allowed per step.
-        acceleration_limit: ``a_max`` [rad/s²], shape ``(nv,)``, or None.
-    """
-    limits = JointLimits.make(position_limits, velocity_limits, dt, limit_gain, acceleration_limit)
-    bounds = velocity_bounds(theta, qdot_prev, limits)
-    position = position_box(theta, limits, np.empty_like(bounds))
-    if limits.acceleration_step is None:
-        inf = np.full(theta.shape, np.inf)
-        acceleration = (-inf, inf)
-    else:
-        step = limits.acceleration_step
-        acceleration = (qdot_prev - step, qdot_prev + step)
-    velocity = (limits.negative_speed, limits.speed)
-    return VelocityBox(velocity, (position[0], position[1]), acceleration, bounds[0], bounds[1])
+    def build(
+        self,
+        task_jacobian: FloatArray,
+        xdot: FloatArray,
+        posture: FloatArray | None,
+        bounds: FloatArray | None,
+        out: QpProblem,
+    ) -> QpProblem:
+        """The QP of :math:`f` under the box ``bounds`` (2, nv) into ``out`` (:func:`build_qp`)."""
+        return build_qp(task_jacobian, xdot, self.mu, bounds, self.posture_weight, posture, out)
 
 
 def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | None:

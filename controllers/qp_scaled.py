@@ -11,11 +11,12 @@ import qpsolvers
 
 from otmm_qp.backends.backend import BackendOutput, rank_cutoff
 from otmm_qp.exceptions import ParameterError
-from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.limits import LimitSpec, make_limits
+from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend
-from otmm_qp_controllers.qp_problem import BIG, QpProblem
+from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend, QpStep
+from otmm_qp_controllers.qp_problem import BIG, QpProblem, clip_into_box
 from otmm_qp_controllers.qp_solvers import SESSIONS, Solution
 
 BoolArray = npt.NDArray[np.bool_]
@@ -85,8 +86,8 @@ class ScaledQpBackend(BoxQpBackend):
         \max_{\dot q,\ \alpha\in[0,1]}\ \alpha \quad\text{s.t.}\quad J_w\dot q = \alpha\dot x_w,
         \quad lb \le \dot q \le ub
 
-    with the joint-velocity box of :func:`~otmm_qp_controllers.qp_problem.velocity_box`.
-    Drake uses the linear cost ``−100α`` plus a null-space posture cost; here the QP of
+    with the box ``[lb; ub]`` of the step's box limits (:mod:`otmm_qp.limits`). Drake uses the
+    linear cost ``−100α`` plus a null-space posture cost; here the QP of
     :func:`build_scaled_qp` is solved, ``−α + ε/2(‖q̇‖² + α²)``: the small ``ε`` makes the
     Hessian positive definite (quadprog, proxqp need it) and picks the minimum-norm ``q̇``;
     it lowers α below its maximum only when ``ε(1 + ‖q̇‖²/α²) > 1``.
@@ -94,20 +95,21 @@ class ScaledQpBackend(BoxQpBackend):
     Near a singularity the equality forces ``α → 0`` for commands along the lost direction:
     that is a result (status ``stuck``), not a failure. When the pseudoinverse solution
     already lies in the box it is returned with ``α = 1`` without calling the solver.
+    ``BackendOutput.scale`` is α; ``details`` the :class:`~otmm_qp_controllers.qp_base.QpStep`.
 
     Args:
         solver: One of :data:`SCALED_SOLVERS` that is installed.
-        limit_gain: ``g ∈ (0, 1]`` of the position-limit velocity bounds.
-        acceleration_limit: ``a_max`` [rad/s²], scalar or shape ``(nv,)``; None: no limit.
+        limits: Box limits or ``{type: NAME, ...}`` entries (:mod:`otmm_qp.limits.options`);
+            None: the robot's speed limit and ``{type: position, gain: 0.5}``. Row limits
+            (the singularity barrier) are refused.
         stuck_threshold: Status ``stuck`` when ``α`` is below it, in ``[0, 1]``.
         regularization: ``ε > 0``.
         infeasible_policy: ``raise`` (:class:`~otmm_qp.exceptions.InfeasibleProblem`) or
             ``hold`` (zero speed clipped into the relaxed box, ``α = 0``), used when the box
             is empty or no ``(q̇, α)`` exists (e.g. the box excludes ``q̇ = 0`` while ``J_w``
             has no null space).
-
-    Attributes:
-        alpha: ``α`` of the last step.
+        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
+        acceleration_limit: Older form of ``limits: [..., {type: acceleration, a_max: a}]``.
     """
 
     name = "qp_scaled"
@@ -116,79 +118,71 @@ class ScaledQpBackend(BoxQpBackend):
     def __init__(
         self,
         solver: str = "daqp",
-        limit_gain: float = 0.5,
-        acceleration_limit: float | Sequence[float] | None = None,
+        limits: Sequence[LimitSpec] | None = None,
         stuck_threshold: float = 0.1,
         regularization: float = 1e-6,
         infeasible_policy: Literal["raise", "hold"] = "raise",
+        limit_gain: float | None = None,
+        acceleration_limit: float | Sequence[float] | None = None,
     ) -> None:
         installed = set(qpsolvers.available_solvers) | set(SESSIONS)
         allowed = [s for s in SCALED_SOLVERS if s in installed]
-        super().__init__(solver, limit_gain, acceleration_limit, infeasible_policy, allowed)
+        legacy = {"limit_gain": limit_gain, "acceleration_limit": acceleration_limit}
+        limit_set = make_limits(limits, legacy)
+        if limit_set.rows:
+            names = ", ".join(row.name for row in limit_set.rows)
+            raise ParameterError("limits", f"qp_scaled takes box limits only, not {names}")
+        super().__init__(solver, limit_set, infeasible_policy, allowed)
         if not 0.0 <= stuck_threshold <= 1.0:
             raise ParameterError("stuck_threshold", f"must be in [0, 1], got {stuck_threshold}")
         if not (np.isfinite(regularization) and regularization > 0.0):
             raise ParameterError("regularization", f"must be > 0, got {regularization}")
         self.stuck_threshold = float(stuck_threshold)
         self.regularization = float(regularization)
-        self.alpha = 1.0
-        self._last: tuple[KinematicState, FloatArray] | None = None
-
-    def bind(self, robot: Robot, dt: float) -> None:
-        """Read the robot limits."""
-        super().bind(robot, dt)
-
-    def reset(self) -> None:
-        """Forget the step counter, the warm start and the last problem."""
-        super().reset()
-        self._last = None
-
-    @property
-    def problem(self) -> QpProblem | None:
-        """The scaled QP of the last step (pure :func:`build_scaled_qp`)."""
-        box = self.box
-        if self._last is None or box is None:
-            return None
-        state, xdot = self._last
-        bounds = np.array([box.lower, box.upper])
-        return build_scaled_qp(state, xdot, bounds, self.regularization)
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Joint velocity [rad/s] realising ``α ẋ_w``; ``BackendOutput.scale = α``."""
         step, _, empty = self.begin_step(state, qdot_prev)
-        self._last = (state, xdot)
+        bounds = self.box.bounds
         if empty:
-            box = self.box
-            assert box is not None  # noqa: S101 - begin_step ran
-            return self._fail(step, box.conflict(self.robot.joint_names), None)
+            problem = build_scaled_qp(state, xdot, bounds, self.regularization)
+            detail = self.box.conflict(self.robot.joint_names)
+            return self._fail(step, detail, (problem, None), True)
         keep, inside = range_split(state, xdot)
         if inside:
             sigma = state.sigma
             candidate = state.Vt[keep].T @ ((state.U[:, keep].T @ xdot) / sigma[keep])
-            lower, upper = self.bounds
+            lower, upper = bounds
             if np.all(candidate >= lower) and np.all(candidate <= upper):
-                self.alpha = 1.0
-                return BackendOutput(candidate, self._status(candidate, 1.0, 1e-9), scale=1.0)
-        problem = build_scaled_qp(state, xdot, self.bounds, self.regularization)
+                status = self._status(candidate, 1.0, 1e-9)
+                return BackendOutput(candidate, status, scale=1.0, details=QpStep(bounds))
+        problem = build_scaled_qp(state, xdot, bounds, self.regularization)
         self.session.load(problem)
         solution = self.session.solve()
-        if solution.x is None or not np.all(np.isfinite(solution.x)):
+        settled = None if solution.x is None else clip_into_box(solution.x[:-1], bounds, SOLVER_TOL)
+        if settled is None or not np.isfinite(solution.x[-1]):
             detail = f"solver {self.solver!r} found no (q̇, α) with J q̇ = α ẋ inside the box"
-            return self._fail(step, detail, solution, problem)
+            return self._fail(step, detail, (problem, solution), False)
         alpha = float(np.clip(solution.x[-1], 0.0, 1.0))
-        qdot = np.clip(solution.x[:-1], self.bounds[0], self.bounds[1])
-        self.alpha = alpha
-        return BackendOutput(qdot, self._status(qdot, alpha, SOLVER_TOL), scale=alpha)
+        qdot, active = settled
+        status = Status.STUCK if alpha < self.stuck_threshold else (
+            Status.BOUNDED if active else Status.OK
+        )  # fmt: skip
+        details = QpStep(bounds, problem, solution)
+        return BackendOutput(qdot, status, scale=alpha, details=details)
 
     def _status(self, qdot: FloatArray, alpha: float, tol: float) -> Status:
         return Status.STUCK if alpha < self.stuck_threshold else self.classify(qdot, tol)
 
     def _fail(
-        self, step: int, detail: str, solution: Solution | None, problem: QpProblem | None = None
+        self,
+        step: int,
+        detail: str,
+        evidence: tuple[QpProblem | None, Solution | None],
+        empty: bool,
     ) -> BackendOutput:
-        evidence = self.problem if problem is None else problem
-        qdot, status = self.fallback(step, detail, evidence, solution)
-        self.alpha = 0.0
-        return BackendOutput(qdot, status, scale=0.0)
+        qdot, status = self.fallback(step, detail, evidence, empty)
+        details = QpStep(self.box.bounds, *evidence)
+        return BackendOutput(qdot, status, scale=0.0, details=details)

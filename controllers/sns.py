@@ -3,13 +3,16 @@ r"""Saturation in the Null Space with greedy task scaling (Flacco, De Luca, Khat
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
-from otmm_qp.backends.backend import STATUS_BOUNDED, STATUS_OK, Backend, BackendOutput
+from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.limits import LimitBox, LimitSpec, make_limits
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 
 def task_scaling_factor(
@@ -72,46 +75,62 @@ class SnsBackend(Backend):
     SNS 0.7309, LP 0.7464. Over 2 000 random redundant cases the greedy scale was below the
     LP optimum in 1 % of them, by at most 2.7 %; it never exceeds it (it is always feasible).
 
-    Bounds per joint (Flacco's shaping without the acceleration term):
+    Bounds per joint: the box of the backend's limits (:mod:`otmm_qp.limits`), by default
+    Flacco's shaping without the acceleration term,
     :math:`\dot Q_{max} = \min(\dot q_{max}, (\theta_{max} - \theta)/dt)`,
-    :math:`\dot Q_{min} = \max(-\dot q_{max}, (\theta_{min} - \theta)/dt)`, with
-    :math:`\dot q_{max}` the robot's speed limit, further capped by ``max_speed``.
+    :math:`\dot Q_{min} = \max(-\dot q_{max}, (\theta_{min} - \theta)/dt)` (``velocity`` and
+    ``{type: position, gain: 1}``), with :math:`\dot q_{max}` the robot's speed limit,
+    further capped by ``{type: velocity, max_speed: …}``. Conflicting boxes (a joint outside
+    its position limit) are relaxed by priority (:func:`otmm_qp.limits.box.relaxed`): the
+    joint may return at its speed limit.
 
     SNS is not a singularity method: near a singularity :math:`(JW)^+` is large and the
     task is scaled down until the bounds hold (``rcond`` truncates the pseudoinverse).
 
     Args:
-        max_speed: Extra uniform joint-speed bound [rad/s] (> 0), e.g. for planar arms that
-            have none; ``None``: the robot's limits only.
+        limits: Box limits or ``{type: NAME, ...}`` entries (:mod:`otmm_qp.limits.options`);
+            None: the robot's speed limit and ``{type: position, gain: 1}``.
         rcond: Relative truncation threshold of the pseudoinverses, in ``[0, 1)``.
+        max_speed: Older form of ``limits: [{type: velocity, max_speed: s}]`` [rad/s].
     """
 
     name = "sns"
+    enforces_limits = True
 
-    def __init__(self, max_speed: float | None = None, rcond: float = 1e-10) -> None:
-        if max_speed is not None and not (
-            isinstance(max_speed, int | float) and math.isfinite(max_speed) and max_speed > 0.0
-        ):
-            raise ParameterError(
-                "max_speed", f"must be a finite number > 0 [rad/s], got {max_speed!r}"
-            )
+    def __init__(
+        self,
+        limits: Sequence[LimitSpec] | None = None,
+        rcond: float = 1e-10,
+        max_speed: float | None = None,
+    ) -> None:
         if not (isinstance(rcond, int | float) and 0.0 <= rcond < 1.0):
             raise ParameterError("rcond", f"must be in [0, 1), got {rcond!r}")
-        self.max_speed = None if max_speed is None else float(max_speed)
+        self.limits = make_limits(limits, {"max_speed": max_speed}, default_gain=1.0)
+        if self.limits.rows:
+            names = ", ".join(row.name for row in self.limits.rows)
+            raise ParameterError("limits", f"sns takes box limits only, not {names}")
+        self.box = LimitBox(self.limits.boxes)
         self.rcond = float(rcond)
 
-    def bounds(self, state: KinematicState) -> tuple[FloatArray, FloatArray]:
-        """Joint-velocity bounds ``(Q̇_min, Q̇_max)`` [rad/s], shapes ``(nv,)``."""
-        speed = np.asarray(self.robot.velocity_limits, dtype=float)
-        if self.max_speed is not None:
-            speed = np.minimum(speed, self.max_speed)
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Bind the limits."""
+        super().bind(robot, dt)
+        self.box.bind(robot, dt)
+
+    def bounds(
+        self, state: KinematicState, qdot_prev: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Joint-velocity bounds ``(Q̇_min, Q̇_max)`` [rad/s], shapes ``(nv,)``, relaxed by priority.
+
+        Args:
+            state: The step's state.
+            qdot_prev: Previous joint velocity [rad/s] (an acceleration limit's centre); zero
+                when None.
+        """
         theta = self.robot.joint_coordinates(state.q)
-        low_limit, high_limit = self.robot.position_limits
-        with np.errstate(invalid="ignore"):
-            upper = np.minimum(speed, (high_limit - theta) / self.dt)
-            lower = np.maximum(-speed, (low_limit - theta) / self.dt)
-        upper = np.maximum(upper, np.minimum(lower, 0.0))  # outside a limit: allow returning
-        lower = np.minimum(lower, upper)
+        previous = np.zeros(state.jacobian.shape[1]) if qdot_prev is None else qdot_prev
+        self.box.compute(theta, previous)
+        lower, upper = self.box.relaxed()
         return lower, upper
 
     def _pinv(self, jacobian: FloatArray, free: FloatArray) -> tuple[FloatArray, int]:
@@ -133,7 +152,7 @@ class SnsBackend(Backend):
         """SNS joint velocity [rad/s], shape ``(nv,)``; ``scale`` is the task scale s."""
         jacobian = state.task_jacobian
         n, nv = jacobian.shape
-        lower, upper = self.bounds(state)
+        lower, upper = self.bounds(state, qdot_prev)
         task_rank = self._pinv(jacobian, np.ones(nv, dtype=bool))[1]
         free = np.ones(nv, dtype=bool)
         qdot_n = np.zeros(nv)
@@ -144,7 +163,7 @@ class SnsBackend(Backend):
             pinv = self._pinv(jacobian, free)[0]
             qdot = qdot_n + pinv @ (xdot - jacobian @ qdot_n)
             if np.all(qdot >= lower - tolerance) and np.all(qdot <= upper + tolerance):
-                status = STATUS_OK if free.all() else STATUS_BOUNDED
+                status = Status.OK if free.all() else Status.BOUNDED
                 return BackendOutput(np.clip(qdot, lower, upper), status=status, scale=1.0)
             a = pinv @ xdot
             b = qdot - a
@@ -160,4 +179,4 @@ class SnsBackend(Backend):
         scale, free, qdot_n = best
         pinv = self._pinv(jacobian, free)[0]
         qdot = qdot_n + pinv @ (scale * xdot - jacobian @ qdot_n)
-        return BackendOutput(np.clip(qdot, lower, upper), status=STATUS_BOUNDED, scale=scale)
+        return BackendOutput(np.clip(qdot, lower, upper), status=Status.BOUNDED, scale=scale)

@@ -12,6 +12,7 @@ pytest session in an environment with otmm-qp loads) stays cheap.
 from __future__ import annotations
 
 import importlib
+from importlib import metadata
 from typing import TYPE_CHECKING, Any
 
 from otmm_qp.exceptions import OtmmError
@@ -21,7 +22,10 @@ if TYPE_CHECKING:
     from otmm_qp.state import KinematicState
 
 __all__ = ["Controller", "ControllerOutput", "KinematicState", "OtmmError"]
-__version__ = "0.1.0"
+try:  # the version is declared once, in pyproject.toml
+    __version__ = metadata.version("otmm-qp")
+except metadata.PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
 
 _LAZY = {
     "Controller": "otmm_qp.controller",

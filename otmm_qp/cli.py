@@ -56,7 +56,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with interrupt.handle_stop_signals():
             status = int(modules[args.command or "run"].run(args))
-            interrupt.check()  # a stop request Python swallowed still counts
+            if status != EXIT_INTERRUPTED:  # the command already said it was interrupted
+                interrupt.check()  # a stop request Python swallowed still counts
             return status
     except OtmmError as error:
         print(f"otmm-qp: error: {error}", file=sys.stderr)

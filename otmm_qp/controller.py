@@ -8,12 +8,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from otmm_qp.backends.backend import STATUS_NONFINITE, Backend, BackendOutput
+from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.status import DIVERGENCE_SPEED, classify_divergence
+from otmm_qp.status import DIVERGENCE_SPEED, Status, classify, speed_limit_thresholds
 
 
 class ControllerOutput(NamedTuple):
@@ -66,6 +66,7 @@ class Controller:
         self.backend = backend
         self._divergence_speed = speed
         self._divergence_squared = speed * speed  # inf stays inf: the check is then off
+        self._speed_thresholds: FloatArray | None = None
 
     @property
     def divergence_speed(self) -> float:
@@ -77,6 +78,9 @@ class Controller:
         for task_filter in self.filters:
             task_filter.bind(robot, dt)
         self.backend.bind(robot, dt)
+        limits = np.asarray(robot.velocity_limits, dtype=float)
+        check = not self.backend.enforces_limits and bool(np.isfinite(limits).any())
+        self._speed_thresholds = speed_limit_thresholds(limits) if check else None
         self.reset()
 
     def reset(self) -> None:
@@ -90,9 +94,11 @@ class Controller:
     ) -> ControllerOutput:
         """Compute ``q̇`` for the physical command ``xdot`` (n,) at ``state``.
 
-        Non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
-        so NaN/inf never leave a step; a solved step faster than ``divergence_speed`` is
-        reported ``diverging``.
+        The step's status is classified once, here (:func:`otmm_qp.status.classify`):
+        non-finite backend output is replaced by zero joint speed with status ``nonfinite``,
+        so NaN/inf never leave a step; an ``ok`` step of a backend that does not enforce
+        limits and exceeds the robot's speed limits is ``saturated``; a solved step faster
+        than ``divergence_speed`` is ``diverging``.
 
         Raises:
             DimensionError: ``xdot`` is not of shape ``(n,)`` or ``qdot_prev`` not ``(nv,)``.
@@ -117,12 +123,16 @@ class Controller:
         qdot = result.qdot
         # One dot product: NaN/inf (or |q̇| beyond 1e154) make it non-finite.
         speed_squared = float(qdot.dot(qdot))  # ndarray.dot: the least call overhead
-        if not math.isfinite(speed_squared):
-            qdot = np.zeros_like(qdot_prev)
-            result = result._replace(qdot=qdot, status=STATUS_NONFINITE)
-        elif speed_squared > self._divergence_squared:  # ‖q̇‖∞ ≤ ‖q̇‖₂: else not diverging
-            status = classify_divergence(result.status, speed_squared, qdot, self._divergence_speed)
-            if status is not result.status:
-                result = result._replace(status=status)
+        thresholds = self._speed_thresholds
+        # Skipped when no rule can apply: a limit-enforcing backend's finite step slower than
+        # the divergence speed (NaN and inf fail the < test).
+        if thresholds is not None or not speed_squared < self._divergence_squared:
+            status = classify(
+                result.status, qdot, speed_squared, thresholds, self._divergence_speed
+            )
+            if status is Status.NONFINITE:
+                qdot = np.zeros_like(qdot_prev)
+            if status is not result.status or qdot is not result.qdot:
+                result = result._replace(qdot=qdot, status=status)
         filtered = weighted if unit else weighted / state.weight
         return ControllerOutput(qdot, filtered, tuple(reports), result)

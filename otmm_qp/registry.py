@@ -1,6 +1,6 @@
 """Name → implementation registry over ``importlib.metadata`` entry points.
 
-Every robot, filter, p-function, backend and trajectory, built-in or third
+Every robot, filter, p-function, backend, trajectory and limit, built-in or third
 party, is found the same way: an entry point in one of the groups below. A
 third-party package adds, in its ``pyproject.toml``::
 
@@ -35,7 +35,8 @@ P_FUNCTIONS = "otmm_qp.p_functions"
 BACKENDS = "otmm_qp.backends"
 TRAJECTORIES = "otmm_qp.trajectories"
 TASK_GENERATORS = "otmm_qp.task_generators"
-GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS)
+LIMITS = "otmm_qp.limits"
+GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS, LIMITS)
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,10 @@ def _base_class(group: str) -> type | None:
         from otmm_qp.tasks.generator import TaskGenerator
 
         return TaskGenerator
+    if group == LIMITS:
+        from otmm_qp.limits.limit import BaseLimit
+
+        return BaseLimit
     return None
 
 
@@ -195,6 +200,56 @@ def check_parameters(
             )
 
 
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def blame_parameter(
+    factory: Callable[..., Any], params: Mapping[str, Any]
+) -> tuple[str, str] | None:
+    """The first parameter whose value does not fit ``factory``'s type hint, and why.
+
+    Used when a plugin raised a bare TypeError/ValueError (``could not convert string to
+    float``), so the message names the parameter and what it accepts. Hints pydantic cannot
+    check (arrays, callables) are skipped.
+
+    Returns:
+        ``(name, "input should be ..., got VALUE")``, or None when every value fits its hint
+        (or none is checkable).
+    """
+    import typing
+
+    from pydantic import ConfigDict, TypeAdapter, ValidationError
+
+    target = factory.__init__ if inspect.isclass(factory) else factory
+    try:
+        hints = typing.get_type_hints(target)
+    except Exception:  # noqa: BLE001 - unresolvable hints: nothing to blame
+        return None
+    for key, value in params.items():
+        hint = hints.get(key)
+        if hint is None:
+            continue
+        try:
+            adapter: TypeAdapter[Any] = TypeAdapter(
+                hint, config=ConfigDict(arbitrary_types_allowed=True)
+            )
+        except Exception:  # noqa: BLE001 - a hint pydantic cannot express
+            continue
+        try:
+            adapter.validate_python(value)
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = "".join(f"[{p}]" for p in first["loc"] if isinstance(p, int))
+            message = str(first["msg"]).split(",")[0]
+            message = message[:1].lower() + message[1:]
+            return (f"{key}{where}", f"{message}, got {_shown(first.get('input', value))}")
+        except Exception:  # noqa: BLE001 - arbitrary types: not checkable
+            continue
+    return None
+
+
 def create(group: str, name: str, params: Mapping[str, Any], field: str, **framework: Any) -> Any:
     """Instantiate plugin ``name`` with user ``params`` plus framework-supplied keywords.
 
@@ -216,6 +271,9 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
             f"{field}.{error.field}" if error.field else field, error.message
         ) from error
     except (TypeError, ValueError) as error:
+        culprit = blame_parameter(factory, params)
+        if culprit is not None:
+            raise ConfigError(f"{field}.{culprit[0]}", culprit[1]) from None
         raise ConfigError(field, f"invalid parameters for {name!r}: {error}") from error
     except PeerUnavailable:
         raise  # not bad input: the runner reports the controller as skipped

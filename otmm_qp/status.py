@@ -22,13 +22,18 @@ The values, in the order a step is classified (the first that applies wins):
 * ``bounded``: solved with at least one joint bound active.
 * ``ok``: solved with no bound active.
 
-:class:`Status` subclasses :class:`str`, so ``status == "ok"`` and string-keyed tables keep
-working.
+:func:`classify` applies these rules, once per step, in
+:meth:`otmm_qp.controller.Controller.step`; a backend reports only what its solve knows
+(``ok``, ``bounded``, ``stuck``, ``relaxed``, ``infeasible``). :class:`Status` members carry
+their attributes (``claims_solution``, ``relaxes_bound``, ``marker``), which reports and figures
+read instead of listing names. :class:`Status` subclasses :class:`str`, so ``status == "ok"``
+and string-keyed tables keep working.
 """
 
 from __future__ import annotations
 
 import enum
+import math
 
 import numpy as np
 
@@ -44,16 +49,45 @@ SPEED_LIMIT_RTOL = 1e-9
 
 
 class Status(str, enum.Enum):
-    """Outcome of one backend solve (see the module docstring for the precise rules)."""
+    """Outcome of one control step (see the module docstring for the precise rules).
 
-    OK = "ok"
-    BOUNDED = "bounded"
-    INFEASIBLE = "infeasible"
-    RELAXED = "relaxed"
-    STUCK = "stuck"
-    NONFINITE = "nonfinite"
-    SATURATED = "saturated"
-    DIVERGING = "diverging"
+    Each member carries what reports, figures and the classification read:
+
+    Attributes:
+        claims_solution: The step returned a usable solution of the problem as posed (``ok``,
+            ``bounded``, ``saturated``, ``stuck``); ``diverging`` overrides only these.
+        relaxes_bound: A bound (or the barrier) was given up or could not be met on the step
+            (``relaxed``, ``infeasible``): the report counts these per run.
+        marker: Figure marker style ``(marker, colour)`` of matplotlib, or None (not marked).
+    """
+
+    OK = ("ok", True, False, None)
+    BOUNDED = ("bounded", True, False, ("v", "tab:orange"))
+    INFEASIBLE = ("infeasible", False, True, ("X", "tab:red"))
+    RELAXED = ("relaxed", False, True, ("P", "tab:pink"))
+    STUCK = ("stuck", True, False, ("s", "tab:purple"))
+    NONFINITE = ("nonfinite", False, False, ("D", "black"))
+    SATURATED = ("saturated", True, False, ("^", "tab:olive"))
+    DIVERGING = ("diverging", False, False, ("*", "tab:brown"))
+
+    claims_solution: bool
+    relaxes_bound: bool
+    marker: tuple[str, str] | None
+
+    def __new__(
+        cls,
+        value: str,
+        claims_solution: bool,
+        relaxes_bound: bool,
+        marker: tuple[str, str] | None,
+    ) -> Status:
+        """A member whose value is the plain name and whose attributes are the rest."""
+        member = str.__new__(cls, value)
+        member._value_ = value
+        member.claims_solution = claims_solution
+        member.relaxes_bound = relaxes_bound
+        member.marker = marker
+        return member
 
     def __str__(self) -> str:
         """The plain value, e.g. ``ok`` (what result files and tables show)."""
@@ -81,22 +115,46 @@ def exceeds_speed_limits(qdot: FloatArray, thresholds: FloatArray) -> bool:
     return bool((np.abs(qdot) > thresholds).any())
 
 
-#: Statuses a ``diverging`` step overrides: the ones that claim a usable solution.
-_SOLVED = frozenset({Status.OK, Status.BOUNDED, Status.SATURATED, Status.STUCK})
+#: Statuses a ``diverging`` step overrides (plain strings of plugins hash alike).
+_SOLVED = frozenset(status for status in Status if status.claims_solution)
 
 
-def classify_divergence(
-    status: str, speed_squared: float, qdot: FloatArray, divergence_speed: float
+def classify(
+    status: str,
+    qdot: FloatArray,
+    speed_squared: float,
+    speed_thresholds: FloatArray | None,
+    divergence_speed: float,
 ) -> str:
-    r"""``diverging`` if a solved step has :math:`\|\dot q\|_\infty > \dot q_{div}`, else as is.
+    r"""The step's status, from the backend's and its ``q̇``: the one classification.
+
+    In order (the first that applies wins):
+
+    1. ``nonfinite`` when :math:`\|\dot q\|_2^2` is not finite (the caller then zeroes q̇);
+    2. ``saturated`` when the backend said ``ok``, does not enforce limits
+       (``speed_thresholds`` given) and :func:`exceeds_speed_limits`;
+    3. ``diverging`` when the status claims a solution and :math:`\|\dot q\|_\infty > \dot q_{div}`;
+    4. the backend's status.
 
     Args:
         status: The backend's status of the step.
-        speed_squared: :math:`\|\dot q\|_2^2` [rad²/s²] (the caller's finiteness check has it).
-        qdot: Joint velocity [rad/s], shape ``(nv,)``, finite.
-        divergence_speed: :math:`\dot q_{div}` [rad/s], > 0.
+        qdot: Joint velocity [rad/s], shape ``(nv,)``.
+        speed_squared: :math:`\|\dot q\|_2^2` [rad²/s²] (the caller has it).
+        speed_thresholds: :func:`speed_limit_thresholds` of the robot for a backend that does
+            not enforce limits; None for one that does (or a robot with no finite limit).
+        divergence_speed: :math:`\dot q_{div}` [rad/s], > 0 (inf: never diverging).
     """
+    if not math.isfinite(speed_squared):
+        return Status.NONFINITE
+    if (
+        speed_thresholds is not None
+        and status == Status.OK
+        and exceeds_speed_limits(qdot, speed_thresholds)
+    ):
+        status = Status.SATURATED
     # ‖q̇‖∞ ≤ ‖q̇‖₂: the cheap 2-norm test rules out almost every step before the exact one.
-    if speed_squared <= divergence_speed * divergence_speed or status not in _SOLVED:
+    if speed_squared <= divergence_speed * divergence_speed:
         return status
-    return Status.DIVERGING if float(np.abs(qdot).max()) > divergence_speed else status
+    if status in _SOLVED and float(np.abs(qdot).max()) > divergence_speed:
+        return Status.DIVERGING
+    return status

@@ -5,8 +5,8 @@ Fast paths checked against their references:
 * QP fast path (unconstrained SVD solution when inside the box) vs ``fast_path=False``;
 * persistent solver sessions (``daqp``, ``proxsuite``, ``osqp``: set up once, updated in
   place, warm started) vs the stateless qpsolvers ``quadprog`` path on the same QP;
-* :func:`build_qp` and :func:`velocity_bounds` writing into reused ``out=`` arrays vs the same
-  functions allocating (and vs the step's exposed pure problem solved from scratch);
+* :func:`build_qp` and :class:`~otmm_qp.limits.LimitBox` writing into reused ``out=`` arrays
+  vs allocating references (and vs the QP a step returns in ``details``, solved from scratch);
 * unmasked pseudoinverse (full rank) vs an explicitly masked one;
 * vectorised OTMM vs a per-index loop written here from paper eq. (8);
 
@@ -26,21 +26,15 @@ import pytest
 
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.filters.otmm import OtmmFilter
+from otmm_qp.limits import AccelerationLimit, LimitBox, PositionLimit, VelocityLimit
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.pinv import PseudoInverseBackend
-from otmm_qp_controllers.qp import QpBackend
-from otmm_qp_controllers.qp_problem import (
-    BIG,
-    JointLimits,
-    QpProblem,
-    build_qp,
-    velocity_bounds,
-    velocity_box,
-)
+from otmm_qp_controllers.qp import QpBackend, QpStep
+from otmm_qp_controllers.qp_problem import BIG, QpProblem, build_qp
 from otmm_qp_controllers.qp_solvers import SESSIONS, make_session, solve_with_qpsolvers
 from otmm_qp_controllers.qp_solvers.session import conflicting_bounds
 
@@ -109,7 +103,8 @@ def test_qp_fast_path_equals_qp(name: str, acceleration: float | None) -> None:
         a, b = fast.solve(state, xdot, prev), slow.solve(state, xdot, prev)
         np.testing.assert_allclose(a.qdot, b.qdot, rtol=0.0, atol=1e-9)
         assert a.status == b.status
-        skipped += not fast.used_qp
+        assert isinstance(a.details, QpStep)
+        skipped += a.details.problem is None
         bounded += b.status == "bounded"
     assert skipped > 0 and bounded > 0  # both branches exercised
 
@@ -183,9 +178,11 @@ def test_unlimited_arm_qp_equals_dls(fast_path: bool) -> None:
     for state, xdot in cases(arm, 10, seed=9):
         out = backend.solve(state, xdot, np.zeros(arm.nv))
         J = state.task_jacobian
-        dls = J.T @ np.linalg.solve(J @ J.T + backend.damping * np.eye(arm.task_dim), xdot)
+        mu = backend.formulation.mu
+        dls = J.T @ np.linalg.solve(J @ J.T + mu * np.eye(arm.task_dim), xdot)
         np.testing.assert_allclose(out.qdot, dls, rtol=0.0, atol=1e-8 * (1 + abs(dls).max()))
-        assert backend.used_qp is not fast_path
+        assert isinstance(out.details, QpStep)
+        assert (out.details.problem is not None) is not fast_path
         assert out.status == Status.OK
 
 
@@ -197,7 +194,8 @@ def test_problem_solved_from_scratch_equals_step(name: str) -> None:
     backend.bind(robot, DT)
     for state, xdot in cases(robot, 10, seed=4):
         out = backend.solve(state, xdot, np.zeros(robot.nv))
-        problem = backend.problem
+        assert isinstance(out.details, QpStep)
+        problem = out.details.problem
         assert problem is not None
         expected = solve_with_qpsolvers(problem.to_qpsolvers(), "quadprog")
         assert expected is not None
@@ -205,29 +203,33 @@ def test_problem_solved_from_scratch_equals_step(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", sorted(ROBOTS))
-def test_velocity_bounds_in_place_bit_identical(name: str) -> None:
-    """velocity_bounds(out=...) on reused arrays equals the allocating velocity_box."""
+def test_limit_box_in_place_bit_identical(name: str) -> None:
+    """LimitBox.compute on reused arrays equals the three box formulas written out here."""
     robot = ROBOTS[name]
     rng = np.random.default_rng(5)
-    acceleration = np.full(robot.nv, 30.0)
-    out, scratch = np.empty((2, robot.nv)), np.empty((2, robot.nv))
-    for acc in (None, acceleration):
-        limits = JointLimits.make(robot.position_limits, robot.velocity_limits, DT, 0.5, acc)
+    a_max = np.full(robot.nv, 30.0)
+    low, high = (np.asarray(side, dtype=float) for side in robot.position_limits)
+    speed = np.asarray(robot.velocity_limits, dtype=float)
+    for acc in (None, a_max):
+        limits = [VelocityLimit(), PositionLimit(0.5)]
+        limits += [] if acc is None else [AccelerationLimit(acc)]
+        box = LimitBox(limits[::-1])  # any order: kept by priority
+        box.bind(robot, DT)
         empties = 0
         for _ in range(20):
             theta = random_theta(robot, rng)
-            theta[0] = robot.position_limits[1][0] + 0.3 if np.isfinite(theta[0]) else 0.0
+            theta[0] = high[0] + 0.3 if np.isfinite(theta[0]) else 0.0
             prev = 3.0 * rng.standard_normal(robot.nv)  # often an empty box with acc
-            velocity_bounds(theta, prev, limits, out=out, scratch=scratch)
-            box = velocity_box(
-                theta, robot.position_limits, robot.velocity_limits, prev, DT, 0.5, acc
-            )
-            np.testing.assert_array_equal(out[0], box.lower)
-            np.testing.assert_array_equal(out[1], box.upper)
-            empties += box.empty
-            # the intersection is the componentwise max/min of the three boxes
-            lower = np.maximum.reduce([box.velocity[0], box.position[0], box.acceleration[0]])
-            np.testing.assert_array_equal(box.lower, lower)
+            empty = box.compute(theta, prev)
+            lower = np.maximum(-speed, (0.5 / DT) * (low - theta))
+            upper = np.minimum(speed, (0.5 / DT) * (high - theta))
+            if acc is not None:
+                lower = np.maximum(lower, prev - acc * DT)
+                upper = np.minimum(upper, prev + acc * DT)
+            np.testing.assert_array_equal(box.bounds[0], lower)
+            np.testing.assert_array_equal(box.bounds[1], upper)
+            assert empty == bool(np.any(lower > upper))
+            empties += empty
         assert acc is None or empties > 0
 
 

@@ -71,7 +71,31 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
     ),
     "velocity limit NaN": (
         GOOD.replace("[1.0, 0.8]}", "[1.0, 0.8], velocity_limits: [.nan, 1.0]}"),
-        r"experiments\.0\.robot: velocity limits must be > 0",
+        r"experiments\.0\.robot\.velocity_limits: every limit must be > 0",
+    ),
+    # issue 19: messages name the field and what it accepts
+    "p a list": (
+        GOOD.replace("p: linear", "p: [linear]"),
+        r"filters\.0\.p: must be a p-function name \(.*linear.*\), got \['linear'\]",
+    ),
+    "string in link_lengths": (
+        GOOD.replace("[1.0, 0.8]", "[one, 0.8]"),
+        r"robot\.link_lengths\[0\]: input should be a valid number, got 'one'",
+    ),
+    "string power exponent": (
+        GOOD.replace("p: linear", "p: power, p_params: {a: steep}"),
+        r"filters\.0\.p_params\.a: input should be a valid number, got 'steep'",
+    ),
+    "NaN joint limits": (
+        GOOD.replace("[1.0, 0.8]}", "[1.0, 0.8], limits: [[.nan, 1.0], [-3, 3]]}"),
+        r"robot\.limits: must not be NaN",
+    ),
+    "3-D trajectory on a planar arm": (
+        GOOD.replace(
+            "{type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}",
+            "{type: constant_velocity_line, begin: [1, 0, 0], end: [1.2, 0, 0], duration: 0.2}",
+        ),
+        r"trajectory: gives points of shape \(3,\) but planar2 has a position task of shape \(2,\)",
     ),
     "long value truncated": (
         GOOD.replace("loop_modes: [clik]", "loop_modes: [" + "x" * 5000 + "]"),

@@ -107,6 +107,10 @@ def test_list_into_closed_pipe() -> None:
         (["--otmm-params", "{bad json"], "invalid JSON"),
         (["--otmm-params", "[1, 2]"], "must be a JSON object"),
         (["--otmm-scenarios", "nope/X"], "--otmm-scenarios: unknown nope/X"),
+        # issue 19: deep nesting is refused, and a selection of nothing never passes vacuously
+        (["--otmm-params", '{"a": ' * 5000 + "1" + "}" * 5000], "nesting deeper than 40"),
+        (["--otmm-filters", "[" * 100 + "]" * 100], "nesting deeper than 40"),
+        (["--otmm-scenarios", ","], "selects no scenario"),
     ],
 )
 def test_pytest_plugin_bad_options_are_usage_errors(

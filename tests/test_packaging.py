@@ -21,3 +21,38 @@ def test_every_subpackage_is_packaged() -> None:
             relative = init.parent.relative_to(ROOT / folder)
             package = ".".join((name, *relative.parts))
             assert package in listed, f"{package} is missing from [tool.setuptools] packages"
+
+
+def test_version_is_declared_once_in_pyproject() -> None:
+    from importlib import metadata
+
+    import tomllib
+
+    import otmm_qp
+
+    root = Path(__file__).resolve().parents[1]
+    declared = tomllib.loads((root / "pyproject.toml").read_text())["project"]["version"]
+    assert otmm_qp.__version__ == metadata.version("otmm-qp") == declared
+    assert declared not in (root / "otmm_qp" / "__init__.py").read_text()
+
+
+def test_ci_runs_lint_format_and_types_before_the_readme_test_command() -> None:
+    root = Path(__file__).resolve().parents[1]
+    steps = [
+        line.strip()
+        for line in (root / ".ci" / "run").read_text().splitlines()
+        if line.strip().startswith(".venv/bin/")
+    ]
+    assert steps == [
+        ".venv/bin/ruff check .",
+        ".venv/bin/ruff format --check .",
+        ".venv/bin/mypy",
+        ".venv/bin/pytest",
+    ]
+    install = next(
+        line for line in (root / ".ci" / "run").read_text().splitlines() if "pip install" in line
+    )
+    assert '".[test,peers,lint]"' in install
+    # the README's test command is what CI runs (with the lint extra added)
+    readme = (root / "README.md").read_text()
+    assert '.venv/bin/pip install -q ".[test,peers]" && .venv/bin/pytest' in readme

@@ -38,7 +38,7 @@ PEER_MODULES = {"pink": "pink", "mink": "mink", "drake": "pydrake"}
 PLUGIN_ROBOT = ("third_party_planar", "tests.test_peer_protocol:UrdfPlanarArm")
 #: Agreement of a peer's q̇ with qp's on one non-singular step [rad/s].
 STEP_TOLERANCE = 1e-6
-#: Tikhonov damping of qp, pink and mink in the step comparison.
+#: Tikhonov weight μ (``regularization``) of qp, pink and mink in the step comparison.
 DAMPING = 1e-9
 
 _INERTIAL = (
@@ -237,8 +237,8 @@ def plugins(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 
 
 def damping(peer: str) -> dict[str, float]:
-    """The Tikhonov damping parameter of ``peer`` set to :data:`DAMPING` (Drake has none)."""
-    return {} if peer == "drake" else {"damping": DAMPING}
+    """The Tikhonov weight of ``peer`` set to :data:`DAMPING` (Drake has none)."""
+    return {} if peer == "drake" else {"regularization": DAMPING}
 
 
 def one_step(robot: Robot, theta: FloatArray, peer: str, weight: FloatArray | None = None) -> Any:
@@ -254,7 +254,9 @@ def one_step(robot: Robot, theta: FloatArray, peer: str, weight: FloatArray | No
     answers = []
     for backend in (
         peers[peer](**damping(peer)),
-        registry.create(registry.BACKENDS, "qp", {"solver": "daqp", "damping": DAMPING}, "qp"),
+        registry.create(
+            registry.BACKENDS, "qp", {"solver": "daqp", "regularization": DAMPING}, "qp"
+        ),
     ):
         backend.bind(robot, 0.01)
         backend.reset()
@@ -303,7 +305,7 @@ def test_third_party_robot_plugin_runs_with_the_peer_in_a_suite(plugins: None, p
         "duration": 0.5,
         "controllers": [
             {"name": peer, "backend": {"type": peer} | damping(peer)},
-            {"name": "qp", "backend": {"type": "qp", "solver": "daqp", "damping": DAMPING}},
+            {"name": "qp", "backend": {"type": "qp", "solver": "daqp", "regularization": DAMPING}},
         ],
     }
     suite = parse_config({"name": "p", "loop_modes": ["clik"], "experiments": [experiment]})

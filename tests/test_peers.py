@@ -12,7 +12,7 @@ import pytest
 from otmm_qp import registry
 from otmm_qp.config.load import parse_config
 from otmm_qp.controller import Controller
-from otmm_qp.exceptions import PeerUnavailable, RobotLoadError
+from otmm_qp.exceptions import ConfigError, PeerUnavailable, RobotLoadError
 from otmm_qp.output.report import read_summary
 from otmm_qp.peers import models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
@@ -209,12 +209,12 @@ def _weighted_limit_active_step(
 def test_pink_and_mink_solve_qps_weighted_limit_active_problem() -> None:
     pytest.importorskip("pink")
     pytest.importorskip("mink")
-    damping = 1e-6
+    weight = 1e-6  # μ
     answers, upper = _weighted_limit_active_step(
         {
-            "qp": {"type": "qp", "params": {"solver": "daqp", "damping": damping}},
-            "pink": {"type": "pink", "params": {"damping": damping}},
-            "mink": {"type": "mink", "params": {"damping": damping}},
+            "qp": {"type": "qp", "params": {"solver": "daqp", "regularization": weight}},
+            "pink": {"type": "pink", "params": {"regularization": weight}},
+            "mink": {"type": "mink", "params": {"regularization": weight}},
         }
     )
     assert answers["qp"][0] == pytest.approx(upper[0], abs=1e-9)  # the limit is active
@@ -226,12 +226,14 @@ def test_pink_and_mink_solve_qps_weighted_limit_active_problem() -> None:
 @pytest.mark.usefixtures("peer_entry_points")
 def test_the_weight_changes_the_answer_so_the_agreement_test_can_fail() -> None:
     answers, _ = _weighted_limit_active_step(
-        {"qp": {"type": "qp", "params": {"solver": "daqp", "damping": 1e-6}}}
+        {"qp": {"type": "qp", "params": {"solver": "daqp", "regularization": 1e-6}}}
     )
     robot = PinocchioArm(name="ur5", position_limits=[[-1.0, 1.0]] + [[-6.2, 6.2]] * 5)
     theta = np.array([0.99, -1.2, 1.5, -1.8, 0.6, 0.3])
     state = KinematicState.compute(robot, robot.configuration(theta))
-    backend = registry.create(registry.BACKENDS, "qp", {"solver": "daqp", "damping": 1e-6}, "qp")
+    backend = registry.create(
+        registry.BACKENDS, "qp", {"solver": "daqp", "regularization": 1e-6}, "qp"
+    )
     backend.bind(robot, 0.01)
     unweighted = backend.solve(state, np.array([-0.3, 0.2, 0.1, 0.2, -0.1, 0.3]), np.zeros(6))
     assert np.max(np.abs(unweighted.qdot - answers["qp"])) > 1e-2
@@ -287,3 +289,26 @@ def test_pink_limit_warning_is_dropped_and_nothing_else(
         logging.warning(PINK_LIMIT_WARNING, -3.141594, 2, -3.141593, 3.141593)
         logging.warning("another warning stays")
     assert [r.getMessage() for r in caplog.records] == ["another warning stays"]
+
+
+@pytest.mark.usefixtures("peer_entry_points")
+@pytest.mark.parametrize("peer", ["pink", "mink", "drake"])
+def test_peers_take_qps_limit_objects(peer: str) -> None:
+    """The same ``limits`` list: a velocity cap is honoured; a limit with no peer counterpart
+    is one line naming what the peer allows."""
+    pytest.importorskip({"pink": "pink", "mink": "mink", "drake": "pydrake"}[peer])
+    robot = PinocchioArm(name="ur5", task="position")
+    theta = np.array([0.3, -1.2, 1.5, -1.8, 0.6, 0.3])
+    state = KinematicState.compute(robot, robot.configuration(theta))
+    capped = {"limits": [{"type": "velocity", "max_speed": 0.2}, {"type": "position"}]}
+    backend = registry.create(registry.BACKENDS, peer, capped, peer)
+    backend.bind(robot, 0.01)
+    assert backend.enforces_limits
+    out = backend.solve(state, np.array([0.5, -0.4, 0.3]), np.zeros(6))
+    assert np.all(np.abs(out.qdot) <= 0.2 + 1e-6), out.qdot
+    refused = {"limits": [{"type": "acceleration", "a_max": 5.0}]}
+    with pytest.raises(
+        ConfigError,
+        match=rf"^{peer}\.limits: {peer} has no counterpart of limit .acceleration.; allowed",
+    ):
+        registry.create(registry.BACKENDS, peer, refused, peer)

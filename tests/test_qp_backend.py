@@ -10,12 +10,13 @@ import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
+from otmm_qp.exceptions import InfeasibleProblem, ParameterError, SolverNotFound
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.damping import damped_least_squares
-from otmm_qp_controllers.qp import QpBackend, available_solvers
+from otmm_qp_controllers.dls import DampedLeastSquaresBackend
+from otmm_qp_controllers.qp import QpBackend, QpStep, available_solvers
 from otmm_qp_controllers.qp_problem import QpProblem
 from otmm_qp_controllers.qp_solvers import Solution, solve_with_qpsolvers
 
@@ -71,17 +72,21 @@ def test_fast_path_equals_qp(case: tuple) -> None:
     slow.bind(arm, DT)
     a, b = fast.solve(state, xdot, prev), slow.solve(state, xdot, prev)
     np.testing.assert_allclose(a.qdot, b.qdot, atol=1e-9)
-    assert slow.used_qp
-    # the plain qpsolvers path on the exposed problem agrees too
-    assert fast.problem is not None
-    reference = solve_with_qpsolvers(fast.problem.to_qpsolvers(), "quadprog")
+    assert isinstance(b.details, QpStep) and b.details.problem is not None  # the QP was solved
+    assert isinstance(a.details, QpStep)
+    np.testing.assert_array_equal(a.details.bounds, b.details.bounds)
+    # the plain qpsolvers path on the pure formulation's QP agrees too
+    problem = fast.formulation.build(
+        state.task_jacobian, xdot, None, a.details.bounds, QpProblem.allocate(arm.nv)
+    )
+    reference = solve_with_qpsolvers(problem.to_qpsolvers(), "quadprog")
     assert reference is not None
     np.testing.assert_allclose(a.qdot, reference, atol=1e-9)
 
 
 def test_no_active_limit_equals_dls() -> None:
     rng = np.random.default_rng(1)
-    backend = QpBackend(damping=1e-3, solver="quadprog", fast_path=False)
+    backend = QpBackend(regularization=1e-3, solver="quadprog", fast_path=False)
     backend.bind(PANDA, DT)
     theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
     for _ in range(10):
@@ -106,7 +111,8 @@ def test_each_solver_same_answer(solver: str) -> None:
         warnings.simplefilter("error")
         for _ in range(3):  # direct paths: init, then warm-started updates
             out = backend.solve(state, xdot, np.zeros(7))
-            assert out.status == "bounded" and backend.used_qp
+            assert out.status == "bounded"
+            assert isinstance(out.details, QpStep) and out.details.problem is not None
             np.testing.assert_allclose(out.qdot, expected.qdot, atol=1e-6)
 
 
@@ -162,19 +168,40 @@ def test_posture_cost_unconstrained_matches_qp() -> None:
     state = KinematicState.compute(PANDA, PANDA.configuration(theta))
     xdot = np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.02])
     a, b = backend.solve(state, xdot, np.zeros(7)), slow.solve(state, xdot, np.zeros(7))
-    assert not backend.used_qp
+    assert isinstance(a.details, QpStep) and a.details.problem is None  # the fast path
     np.testing.assert_allclose(a.qdot, b.qdot, atol=1e-9)
 
 
-def test_damping_reported_as_factor() -> None:
-    """BackendOutput.damping is λ = √μ [task units], the quantity every DLS backend reports."""
-    backend = QpBackend(damping=4e-4, solver="daqp")
-    backend.bind(PANDA, DT)
+def test_damping_means_lambda_as_in_dls() -> None:
+    """``damping: λ`` is the DLS damping factor in qp too (μ = λ²); BackendOutput.damping is λ."""
     theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
     state = KinematicState.compute(PANDA, PANDA.configuration(theta))
-    out = backend.solve(state, np.full(6, 0.01), np.zeros(7))
-    assert out.damping == pytest.approx(0.02)
-    np.testing.assert_allclose(out.qdot, damped_least_squares(state, np.full(6, 0.01), 4e-4))
+    xdot = np.full(6, 0.01)
+    dls = DampedLeastSquaresBackend(damping=0.02)
+    dls.bind(PANDA, DT)
+    expected = dls.solve(state, xdot, np.zeros(7))
+    for options in ({"damping": 0.02}, {"regularization": 4e-4}):
+        backend = QpBackend(solver="daqp", **options)  # type: ignore[arg-type]
+        backend.bind(PANDA, DT)
+        out = backend.solve(state, xdot, np.zeros(7))
+        assert out.damping == pytest.approx(expected.damping) == pytest.approx(0.02)
+        np.testing.assert_allclose(out.qdot, expected.qdot, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"damping": 0.1, "regularization": 0.01}, "regularization: give damping (λ) or"),
+        ({"damping": 0.0}, "damping: must be a finite number > 0, got 0.0"),
+        ({"damping": -0.1}, "damping: must be a finite number > 0, got -0.1"),
+        ({"regularization": float("inf")}, "regularization: must be a finite number > 0"),
+        ({"damping": "a"}, "damping: must be a finite number > 0, got 'a'"),
+    ],
+)
+def test_damping_options_refused(options: dict, message: str) -> None:
+    with pytest.raises(ParameterError) as info:
+        QpBackend(**options)
+    assert str(info.value).startswith(message)
 
 
 class _FailingSession:
@@ -208,7 +235,7 @@ def test_solver_failure_carries_problem_and_answer() -> None:
     assert isinstance(problem, QpProblem)
     np.testing.assert_allclose(
         problem.P, state.task_jacobian.T @ state.task_jacobian + 1e-3 * np.eye(7)
-    )
+    )  # the default μ = 10⁻³
     holding = QpBackend(solver="daqp", fast_path=False, infeasible_policy="hold")
     holding.bind(PANDA, DT)
     holding.session = _FailingSession()  # type: ignore[assignment]

@@ -15,7 +15,7 @@ from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.runner import prepare_experiment, run_experiment
 from otmm_qp.singularity import sigma_min_gradient, sigma_min_rate
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.qp import QpBackend
+from otmm_qp_controllers.qp import QpBackend, QpStep
 from otmm_qp_controllers.qp_problem import BIG
 from otmm_qp_controllers.qp_solvers import solve_with_qpsolvers
 
@@ -33,7 +33,7 @@ WRIST_CONFIG = Path(__file__).parent.parent / "configs" / "arms" / "ur5_wrist.ya
         ({"gain": 1.5}, "singularity_barrier.gain: must be in (0, 1], got 1.5"),
         ({"gain": float("nan")}, "singularity_barrier.gain: must be in (0, 1], got nan"),
         ({"sigma_safe": "a"}, "singularity_barrier.sigma_safe: must be a number, got 'a'"),
-        ({"sigma": 0.1}, "singularity_barrier: unknown key 'sigma'; allowed: sigma_safe, gain"),
+        ({"sigma": 0.1}, "singularity_barrier.sigma: unknown parameter; allowed: sigma_safe, gain"),
         (0.02, "singularity_barrier: must be a mapping with sigma_safe, gain; got 0.02"),
     ],
 )
@@ -55,7 +55,8 @@ def wrist_run(
         xdot = WEIGHT * (3.0 * UR5.task_error(goal, state.x))
         out = backend.solve(state, xdot, prev)
         assert np.all(np.isfinite(out.qdot))
-        records.append((state, out.qdot, str(out.status), np.clip(backend.bounds, -BIG, BIG)))
+        assert isinstance(out.details, QpStep)
+        records.append((state, out.qdot, str(out.status), np.clip(out.details.bounds, -BIG, BIG)))
         q, prev = UR5.integrate(q, out.qdot, DT), out.qdot
     return records
 
@@ -101,7 +102,8 @@ def test_barrier_inactive_far_from_singularity_changes_nothing() -> None:
         xdot = 0.05 * rng.standard_normal(6)
         a, b = plain.solve(state, xdot, np.zeros(7)), barrier.solve(state, xdot, np.zeros(7))
         np.testing.assert_array_equal(a.qdot, b.qdot)
-        assert barrier.barrier_row is None and a.status == b.status
+        assert isinstance(b.details, QpStep)
+        assert b.details.rows == () and a.status == b.status
 
 
 def test_exactly_singular_start_is_a_normal_input() -> None:
@@ -125,9 +127,12 @@ def test_step_with_row_equals_pure_problem_from_scratch() -> None:
     for _ in range(60):
         state = KinematicState.compute(UR5, q, WEIGHT)
         out = backend.solve(state, WEIGHT * 3.0 * UR5.task_error(goal, state.x), prev)
-        if backend.barrier_row is not None and backend.barrier_row.slack == 0.0:
-            problem = backend.problem
+        assert isinstance(out.details, QpStep)
+        rows = out.details.rows
+        if rows and rows[0].slack == 0.0:
+            problem = out.details.problem
             assert problem is not None and problem.C.shape == (1, 6)
+            np.testing.assert_array_equal(problem.C[0], rows[0].row)
             expected = solve_with_qpsolvers(problem.to_qpsolvers(), "quadprog")
             assert expected is not None
             np.testing.assert_allclose(out.qdot, expected, atol=1e-8)

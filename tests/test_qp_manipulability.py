@@ -26,7 +26,7 @@ def test_unconstrained_optimum_has_the_linear_term_and_k0_is_qp() -> None:
     state = KinematicState.compute(robot, np.array([0.2, 0.3, 0.2, 0.1]))
     xdot = np.array([0.05, 0.1])
     mu, k = 1e-3, 1e-5
-    backend = ManipulabilityQpBackend(manipulability_weight=k, damping=mu)
+    backend = ManipulabilityQpBackend(manipulability_weight=k, regularization=mu)
     backend.bind(robot, 0.01)
     out = backend.solve(state, xdot, np.zeros(4))
     J = state.jacobian
@@ -35,8 +35,8 @@ def test_unconstrained_optimum_has_the_linear_term_and_k0_is_qp() -> None:
     assert np.all(np.abs(expected) < 1.0)  # the box is not active here
     np.testing.assert_allclose(out.qdot, expected, atol=1e-10)
     assert out.damping == pytest.approx(np.sqrt(mu))
-    plain = QpBackend(damping=mu)
-    zero = ManipulabilityQpBackend(manipulability_weight=0.0, damping=mu)
+    plain = QpBackend(regularization=mu)
+    zero = ManipulabilityQpBackend(manipulability_weight=0.0, regularization=mu)
     for b in (plain, zero):
         b.bind(robot, 0.01)
     np.testing.assert_array_equal(

@@ -8,6 +8,7 @@ import pytest
 from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.state import KinematicState
+from otmm_qp_controllers.qp_base import QpStep
 from otmm_qp_controllers.qp_problem import QpProblem
 from otmm_qp_controllers.qp_scaled import SCALED_SOLVERS, ScaledQpBackend
 from otmm_qp_controllers.qp_solvers import solve_with_qpsolvers
@@ -62,7 +63,7 @@ def test_singular_but_achievable_command_is_realised() -> None:
     out = backend.solve(state, xdot, np.zeros(6))
     assert out.scale == pytest.approx(1.0)
     np.testing.assert_allclose(state.task_jacobian @ out.qdot, xdot, atol=1e-9)
-    assert backend.problem is not None
+    assert isinstance(out.details, QpStep)  # the fast path (α = 1) or the QP it solved
 
 
 def test_infeasible_policies() -> None:
@@ -93,8 +94,8 @@ def test_problem_solved_by_qpsolvers_matches() -> None:
     """The exposed pure problem, solved from scratch by qpsolvers, gives the step's answer."""
     xdot = np.array([2.0, 0.0, 0.0, 0.0, 0.0, 3.0])
     out, _, backend = _solve(REGULAR, xdot, "daqp")
-    assert backend.problem is not None
-    reference = solve_with_qpsolvers(backend.problem.to_qpsolvers(), "quadprog")
+    assert isinstance(out.details, QpStep) and out.details.problem is not None
+    reference = solve_with_qpsolvers(out.details.problem.to_qpsolvers(), "quadprog")
     assert reference is not None
     np.testing.assert_allclose(out.qdot, reference[:-1], atol=1e-6)
     assert out.scale == pytest.approx(reference[-1], abs=1e-6)

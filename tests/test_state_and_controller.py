@@ -1,12 +1,13 @@
 import numpy as np
 import pytest
 
-from otmm_qp.backends.backend import STATUS_NONFINITE, Backend, BackendOutput
+from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import NonFiniteState
 from otmm_qp.filters import OtmmFilter
 from otmm_qp.robots import PlanarArm
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 
 def test_svd_is_shared_and_correct() -> None:
@@ -47,5 +48,5 @@ def test_controller_never_lets_nan_out() -> None:
         KinematicState.compute(arm, np.array([0.3, 0.0])), np.ones(2), np.zeros(2)
     )
     np.testing.assert_array_equal(out.qdot, [0.0, 0.0])
-    assert out.backend.status == STATUS_NONFINITE
+    assert out.backend.status == Status.NONFINITE
     assert np.all(np.isfinite(out.xdot_filtered))

@@ -1,4 +1,5 @@
-"""Status: one enum, old names as aliases, `saturated` for every unconstrained backend and
+"""Status: one enum whose members carry their attributes, one classification (``classify``,
+applied by the controller): `saturated` for every backend that does not enforce limits and
 `diverging` for every controller, limits or not."""
 
 from __future__ import annotations
@@ -6,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from otmm_qp.backends import backend as backend_module
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ParameterError
@@ -15,13 +15,15 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import (
     DIVERGENCE_SPEED,
     Status,
-    classify_divergence,
+    classify,
     exceeds_speed_limits,
     speed_limit_thresholds,
 )
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend
 from otmm_qp_controllers.dls_adaptive import AdaptiveDampedLeastSquaresBackend
 from otmm_qp_controllers.dls_sigma import SigmaDampedLeastSquaresBackend
+from otmm_qp_controllers.jparse import JParseBackend
+from otmm_qp_controllers.manipulability import ManipulabilityBackend
 from otmm_qp_controllers.pinv import PseudoInverseBackend
 from otmm_qp_controllers.qp import QpBackend
 from otmm_qp_controllers.sdls import SelectiveDampedLeastSquaresBackend
@@ -37,15 +39,21 @@ UNCONSTRAINED = {
     "dls_adaptive": lambda: AdaptiveDampedLeastSquaresBackend(alpha=1e-8, sigma_threshold=0.05),
     "dls_sigma": lambda: SigmaDampedLeastSquaresBackend(lambda_max=1e-4, epsilon=0.05),
     "sdls": lambda: SelectiveDampedLeastSquaresBackend(gamma_max=10.0),
+    "jparse": JParseBackend,
+    "manipulability": lambda: ManipulabilityBackend(gain=0.0),
 }
 
 
-def test_status_is_a_str_enum_with_the_old_names_as_aliases() -> None:
+def test_status_is_a_str_enum_whose_members_carry_their_attributes() -> None:
     assert Status.OK == "ok" and f"{Status.SATURATED}" == "saturated"
-    assert str(Status.RELAXED) == "relaxed"
-    for name in ("OK", "BOUNDED", "INFEASIBLE", "STUCK", "NONFINITE", "RELAXED", "SATURATED"):
-        assert getattr(backend_module, f"STATUS_{name}") is Status[name]
-    assert set(backend_module.STATUSES) < set(Status)
+    assert str(Status.RELAXED) == "relaxed" and Status("bounded") is Status.BOUNDED
+    assert {s for s in Status if s.relaxes_bound} == {Status.RELAXED, Status.INFEASIBLE}
+    solved = {s for s in Status if s.claims_solution}
+    assert solved == {Status.OK, Status.BOUNDED, Status.SATURATED, Status.STUCK}
+    assert not solved & {s for s in Status if s.relaxes_bound}
+    markers = [s.marker for s in Status if s is not Status.OK]
+    assert Status.OK.marker is None and None not in markers
+    assert len(set(markers)) == len(markers)  # every other status is marked, distinctly
 
 
 def test_exceeds_speed_limits_boundary() -> None:
@@ -56,36 +64,43 @@ def test_exceeds_speed_limits_boundary() -> None:
     assert not exceeds_speed_limits(np.array([np.nan, 0.0]), limits)  # nonfinite's business
 
 
+def step(controller: Controller, state: KinematicState, xdot: np.ndarray) -> BackendOutput:
+    return controller.step(state, xdot, np.zeros(2)).backend
+
+
 @pytest.mark.parametrize("name", sorted(UNCONSTRAINED))
 def test_unconstrained_backend_beyond_speed_limit_is_saturated(name: str) -> None:
+    """Every backend without limits, jparse and manipulability included (no opt-in)."""
     state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
     along_weak = 0.5 * state.U[:, -1] + 20.0 * state.U[:, 0]  # [m/s]; sdls clamps v_s
     small = 1e-3 * state.U[:, 0]
     backend = UNCONSTRAINED[name]()
-    backend.bind(LIMITED, DT)
-    fast = backend.solve(state, along_weak, np.zeros(2))
+    assert not backend.enforces_limits
+    controller = Controller(name, [], backend, divergence_speed=np.inf)  # not diverging
+    controller.bind(LIMITED, DT)
+    fast = step(controller, state, along_weak)
     assert np.abs(fast.qdot).max() > 2.0 and fast.status == Status.SATURATED
-    slow = backend.solve(state, small, np.zeros(2))
+    slow = step(controller, state, small)
     assert np.abs(slow.qdot).max() <= 2.0 and slow.status == Status.OK
-    unlimited = UNCONSTRAINED[name]()
+    unlimited = Controller(name, [], UNCONSTRAINED[name](), divergence_speed=np.inf)
     unlimited.bind(UNLIMITED, DT)  # no finite limit: nothing to saturate against
-    assert unlimited.solve(state, along_weak, np.zeros(2)).status == Status.OK
+    assert step(unlimited, state, along_weak).status == Status.OK
 
 
 def test_pinv_spinning_at_1e3_rad_s_is_not_ok() -> None:
     state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
-    backend = PseudoInverseBackend()
-    backend.bind(LIMITED, DT)
-    out = backend.solve(state, state.U[:, -1], np.zeros(2))
+    controller = Controller("pinv", [], PseudoInverseBackend(), divergence_speed=np.inf)
+    controller.bind(LIMITED, DT)
+    out = step(controller, state, state.U[:, -1])
     assert np.abs(out.qdot).max() > 1e3 and out.status == "saturated"
 
 
 def test_qp_never_saturates() -> None:
     """The QP's box holds the speed limits, so its steps are ok or bounded."""
     state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
-    backend = QpBackend(solver="daqp")
-    backend.bind(LIMITED, DT)
-    out = backend.solve(state, 0.5 * state.U[:, -1] + 20.0 * state.U[:, 0], np.zeros(2))
+    controller = Controller("qp", [], QpBackend(solver="daqp"))
+    controller.bind(LIMITED, DT)
+    out = step(controller, state, 0.5 * state.U[:, -1] + 20.0 * state.U[:, 0])
     assert out.status == Status.BOUNDED and np.abs(out.qdot).max() <= 2.0
 
 
@@ -93,7 +108,7 @@ def test_unbound_backend_output_is_ok() -> None:
     class Raw(Backend):
         def solve(
             self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
-        ) -> backend_module.BackendOutput:
+        ) -> BackendOutput:
             return self.unconstrained_output(np.full(2, 1e3))
 
     state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
@@ -130,7 +145,7 @@ def test_every_controller_reports_diverging_without_speed_limits(name: str) -> N
     fast = controller.step(state, 0.5 * state.U[:, -1] + 200.0 * state.U[:, 0], np.zeros(2))
     speed = float(np.abs(fast.qdot).max())
     assert (fast.backend.status == Status.DIVERGING) == (speed > DIVERGENCE_SPEED)
-    if name != "sdls":  # sdls clamps the weak direction's share (γ_max): 93 rad/s here
+    if name not in ("sdls", "jparse"):  # both clamp the weak direction's share: 93 rad/s here
         assert speed > DIVERGENCE_SPEED
     slow = controller.step(state, 1e-3 * state.U[:, 0], np.zeros(2))
     assert slow.backend.status == Status.OK
@@ -139,13 +154,28 @@ def test_every_controller_reports_diverging_without_speed_limits(name: str) -> N
 def test_diverging_threshold_is_the_infinity_norm() -> None:
     """Just above/below q̇_div on one joint of many: the 2-norm pre-test never decides alone."""
     below = np.full(9, 99.0)  # ‖·‖₂ = 297 > 100 but ‖·‖∞ = 99
-    assert classify_divergence(Status.OK, float(below @ below), below, 100.0) == Status.OK
+    assert classify(Status.OK, below, float(below @ below), None, 100.0) == Status.OK
     above = np.zeros(9)
     above[4] = -100.0 * (1 + 1e-12)
-    assert classify_divergence(Status.BOUNDED, float(above @ above), above, 100.0) == "diverging"
+    assert classify(Status.BOUNDED, above, float(above @ above), None, 100.0) == "diverging"
+    assert classify("ok", above, float(above @ above), None, 100.0) == "diverging"  # plain str
     # Statuses that already say the solution is not usable keep their word.
     for status in (Status.INFEASIBLE, Status.RELAXED):
-        assert classify_divergence(status, float(above @ above), above, 100.0) == status
+        assert classify(status, above, float(above @ above), None, 100.0) == status
+
+
+def test_classify_order() -> None:
+    """nonfinite, then saturated (only for ok), then diverging (overriding saturated)."""
+    thresholds = speed_limit_thresholds(np.array([2.0, 2.0]))
+    fast, faster = np.array([3.0, 0.0]), np.array([300.0, 0.0])
+    nan = np.array([np.nan, 0.0])
+    assert classify(Status.OK, nan, float(nan @ nan), thresholds, 100.0) == Status.NONFINITE
+    assert classify(Status.OK, fast, 9.0, thresholds, 100.0) == Status.SATURATED
+    assert classify(Status.STUCK, fast, 9.0, thresholds, 100.0) == Status.STUCK
+    assert classify(Status.OK, faster, 9e4, thresholds, 100.0) == Status.DIVERGING
+    assert classify(Status.OK, fast, 9.0, None, 100.0) == Status.OK  # enforces limits
+    inf = np.array([np.inf, 0.0])
+    assert classify(Status.OK, inf, np.inf, None, np.inf) == Status.NONFINITE
 
 
 def test_diverging_speed_is_configurable_and_validated() -> None:
@@ -164,16 +194,28 @@ def test_diverging_speed_is_configurable_and_validated() -> None:
             Controller("c", [], Constant(), divergence_speed=bad)
 
 
-def test_unconstrained_output_is_exceeds_speed_limits() -> None:
-    """The bound backend's pre-scaled test equals the reference rule, at the tolerance edge too."""
-    backend = PseudoInverseBackend()
-    backend.bind(LIMITED, DT)
+def test_saturated_is_exceeds_speed_limits() -> None:
+    """The controller's pre-scaled test equals the reference rule, at the tolerance edge too."""
+
+    class Constant(Backend):
+        qdot = np.zeros(2)
+
+        def solve(
+            self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
+        ) -> BackendOutput:
+            return self.unconstrained_output(self.qdot)
+
+    backend = Constant()
+    controller = Controller("c", [], backend)
+    controller.bind(LIMITED, DT)
+    state = KinematicState.compute(LIMITED, NEAR_SINGULAR)
     rng = np.random.default_rng(2)
     edges = [2.0 * (1 + 1e-10), 2.0 * (1 + 1e-8), 2.0, -2.0 * (1 + 1e-8)]
     samples = [rng.uniform(-2.5, 2.5, 2) for _ in range(200)] + [np.array([e, 0.0]) for e in edges]
     thresholds = speed_limit_thresholds(LIMITED.velocity_limits)
     for qdot in samples:
-        saturated = backend.unconstrained_output(qdot).status == Status.SATURATED
+        backend.qdot = qdot
+        saturated = step(controller, state, np.zeros(2)).status == Status.SATURATED
         assert saturated == exceeds_speed_limits(qdot, thresholds)
 
 

@@ -2,14 +2,6 @@
 
 from otmm_qp.backends.backend import (
     RCOND,
-    STATUS_BOUNDED,
-    STATUS_INFEASIBLE,
-    STATUS_NONFINITE,
-    STATUS_OK,
-    STATUS_RELAXED,
-    STATUS_SATURATED,
-    STATUS_STUCK,
-    STATUSES,
     Backend,
     BackendOutput,
     rank_cutoff,
@@ -19,14 +11,6 @@ from otmm_qp.status import Status
 
 __all__ = [
     "RCOND",
-    "STATUSES",
-    "STATUS_BOUNDED",
-    "STATUS_INFEASIBLE",
-    "STATUS_NONFINITE",
-    "STATUS_OK",
-    "STATUS_RELAXED",
-    "STATUS_SATURATED",
-    "STATUS_STUCK",
     "Backend",
     "BackendOutput",
     "Status",

@@ -3,29 +3,58 @@
 from __future__ import annotations
 
 import abc
+import math
 from typing import Final, NamedTuple
 
 import numpy as np
 
+from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.status import Status, exceeds_speed_limits, speed_limit_thresholds
-
-# Aliases of the Status members, kept importable for code written before the enum.
-STATUS_OK: Final = Status.OK
-STATUS_BOUNDED: Final = Status.BOUNDED
-STATUS_INFEASIBLE: Final = Status.INFEASIBLE
-STATUS_STUCK: Final = Status.STUCK
-STATUS_NONFINITE: Final = Status.NONFINITE
-STATUS_RELAXED: Final = Status.RELAXED
-STATUS_SATURATED: Final = Status.SATURATED
-#: The statuses counted by the metrics (``status_<name>`` columns) before the enum existed;
-#: :class:`~otmm_qp.status.Status` lists them all.
-STATUSES: Final = (STATUS_OK, STATUS_BOUNDED, STATUS_INFEASIBLE, STATUS_STUCK, STATUS_NONFINITE)
+from otmm_qp.status import Status
 
 #: Singular values below ``RCOND·σ_max`` count as zero: the one rank cutoff of every backend.
 RCOND: Final = 1e-10
 _TINY: Final = float(np.finfo(float).tiny)
+
+
+def damping_weight(
+    damping: float | None, regularization: float | None, default: float, positive: bool = False
+) -> float:
+    r"""The weight ``μ`` of ``½‖q̇‖²`` from ``damping`` (λ, then μ = λ²) or ``regularization`` (μ).
+
+    ``damping`` means the DLS damping factor λ [task units] in every backend, as in
+    :math:`J^\top(JJ^\top + \lambda^2 I)^{-1}`; a QP-shaped backend (``qp``, ``pink``,
+    ``mink``) may instead be given its weight ``regularization: μ`` [task units² / (rad/s)²]
+    directly. At most one of the two.
+
+    Args:
+        damping: λ [task units], or None.
+        regularization: μ, or None.
+        default: μ when neither is given.
+        positive: Whether μ must be > 0 (else ≥ 0).
+
+    Raises:
+        ParameterError: Both given, or a value that is not a finite number in range.
+    """
+    if damping is not None and regularization is not None:
+        raise ParameterError(
+            "regularization", "give damping (λ) or regularization (μ = λ²), not both"
+        )
+    if damping is None and regularization is None:
+        return default
+    field = "damping" if damping is not None else "regularization"
+    value = damping if damping is not None else regularization
+    bound = "> 0" if positive else ">= 0"
+    message = f"must be a finite number {bound}, got {value!r:.40}"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParameterError(field, message)
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ParameterError(field, message)
+    mu = float(value) * float(value) if damping is not None else float(value)
+    if positive and not mu > 0.0:
+        raise ParameterError(field, message)
+    return mu
 
 
 def rank_cutoff(sigma: FloatArray, rcond: float = RCOND) -> float:
@@ -48,12 +77,17 @@ class BackendOutput(NamedTuple):
             :math:`J^\top(JJ^\top + \lambda^2 I)^{-1}`, i.e. the QP weight of
             :math:`\|\dot q\|^2` is λ² — NaN when the backend has none.
         scale: Fraction α ∈ [0, 1] of the command realised (1 unless direction-preserving).
+        details: What the step solved, for inspection, or None: e.g. the QP backends'
+            :class:`~otmm_qp_controllers.qp.QpStep` (its box, the QP and the solver's answer).
+            Arrays in it may be the backend's buffers, overwritten by its next step (copy to
+            keep).
     """
 
     qdot: FloatArray
     status: str = Status.OK
     damping: float = float("nan")
     scale: float = 1.0
+    details: object = None
 
 
 class Backend(abc.ABC):
@@ -68,6 +102,9 @@ class Backend(abc.ABC):
 
     #: Registered name (informative).
     name: str = "backend"
+    #: Whether every returned ``q̇`` honours the robot's speed limits. When False, the
+    #: controller reports a faster step ``saturated`` (:func:`otmm_qp.status.classify`).
+    enforces_limits: bool = False
     robot: Robot
     dt: float
 
@@ -75,10 +112,6 @@ class Backend(abc.ABC):
         """Attach the robot and the control period ``dt`` [s]; called once per run."""
         self.robot = robot
         self.dt = dt
-        limits = np.asarray(robot.velocity_limits, dtype=float)
-        self._speed_limits: FloatArray | None = (
-            speed_limit_thresholds(limits) if np.isfinite(limits).any() else None
-        )
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget warm starts and per-run state (called at the start of each run)."""
@@ -96,13 +129,11 @@ class Backend(abc.ABC):
         """
 
     def unconstrained_output(self, qdot: FloatArray, damping: float = np.nan) -> BackendOutput:
-        """``ok``, or ``saturated`` when ``qdot`` exceeds the bound robot's speed limits.
+        """``BackendOutput(qdot, ok, damping)``: the output of a backend without limits.
 
-        For backends that do not enforce joint limits (see :mod:`otmm_qp.status`).
+        Whether such a step is ``saturated`` (faster than the robot's speed limits) is decided
+        by the controller for every backend with :attr:`enforces_limits` False.
         """
-        limits = getattr(self, "_speed_limits", None)  # None: unbound, or no finite limit
-        if limits is not None and exceeds_speed_limits(qdot, limits):
-            return BackendOutput(qdot, Status.SATURATED, damping)
         return BackendOutput(qdot, Status.OK, damping)
 
 

@@ -34,11 +34,16 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, option, None)
         if value is not None and value < 2:
             raise ConfigError(f"--{option.replace('_', '-')}", f"must be >= 2, got {value}")
-    write_replays(
-        args.results,
-        args.experiment,
-        args.controller,
-        max_frames=args.max_frames,
-        max_bytes=args.max_bytes,
-    )
+    from otmm_qp.output.folders import lock_folder
+    from otmm_qp.replay.write import check_run_folder
+
+    check_run_folder(args.results)  # before the lock, which would create the folder
+    with lock_folder(args.results):  # no run writes it meanwhile
+        write_replays(
+            args.results,
+            args.experiment,
+            args.controller,
+            max_frames=args.max_frames,
+            max_bytes=args.max_bytes,
+        )
     return 0

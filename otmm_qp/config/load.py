@@ -1,12 +1,17 @@
-"""Read and validate YAML experiment files, with one-line errors naming the field."""
+"""One loader for every YAML file: the hardened reader, the strict schema, one error shaper.
+
+``load(model, path)`` = :func:`~otmm_qp.config.yaml_loader.load_yaml` (size, depth,
+alias-bomb and duplicate-key limits, UTF-8, YAML 1.2 numbers) + ``model.model_validate`` +
+:func:`parse`'s one-line message naming the first offending field and what is allowed.
+"""
 
 from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.config.yaml_loader import load_yaml
@@ -18,6 +23,8 @@ MESSAGE_VALUE_LIMIT = 80
 #: Name of the embedded default config (the paper reproduction).
 DEFAULT_CONFIG = "paper.yaml"
 
+Model = TypeVar("Model", bound=BaseModel)
+
 
 def embedded_config_path(name: str = DEFAULT_CONFIG) -> Path:
     """Path of a config shipped in the package (``configs/`` of the repository)."""
@@ -28,16 +35,21 @@ def _field_path(location: tuple[int | str, ...]) -> str:
     return ".".join(str(part) for part in location)
 
 
-def parse_config(data: Any, source: str = "config") -> SuiteConfig:
-    """Validate already-parsed YAML data.
+def _shown(value: Any) -> str:
+    shown = repr(value)
+    return shown if len(shown) <= MESSAGE_VALUE_LIMIT else shown[: MESSAGE_VALUE_LIMIT - 3] + "..."
+
+
+def parse(model: type[Model], data: Any, source: str) -> Model:
+    """Validate already-parsed YAML data as ``model``.
 
     Raises:
-        ConfigError: Naming the first offending field path and what is allowed.
+        ConfigError: ``SOURCE: FIELD.PATH: what is wrong[, got VALUE]`` for the first error.
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
     try:
-        return SuiteConfig.model_validate(data)
+        return model.model_validate(data)
     except ValidationError as error:
         first = error.errors()[0]
         path = _field_path(tuple(first["loc"]))
@@ -45,20 +57,33 @@ def parse_config(data: Any, source: str = "config") -> SuiteConfig:
         if first["type"] == "extra_forbidden":
             message = "unknown key"
         elif first["type"] in ("literal_error", "finite_number", "string_pattern_mismatch"):
-            shown = repr(first.get("input"))
-            if len(shown) > MESSAGE_VALUE_LIMIT:
-                shown = shown[: MESSAGE_VALUE_LIMIT - 3] + "..."
-            message = f"{message}, got {shown}"
+            message = f"{message}, got {_shown(first.get('input'))}"
         raise ConfigError(f"{source}: {path}" if path else source, message) from None
 
 
-def load_config(path: str | Path) -> SuiteConfig:
-    """Read and validate a YAML experiment file.
+def load(model: type[Model], path: str | Path, kind: str = "config") -> Model:
+    """Read a YAML file with the hardened reader and validate it as ``model``.
+
+    Args:
+        model: The record type (e.g. :class:`SuiteConfig`, ``StudyConfig``).
+        path: The file.
+        kind: What the file is, for the missing-file message (``config``, ``study``).
 
     Raises:
-        ConfigError: Missing file, malformed YAML (with line and column) or invalid content.
+        ConfigError: Missing file, malformed or refused YAML (with line and column), or
+            invalid content (one line naming the field).
     """
     file = Path(path)
     if not file.is_file():
-        raise ConfigError(str(file), "no such config file")
-    return parse_config(load_yaml(file), str(file))
+        raise ConfigError(str(file), f"no such {kind} file")
+    return parse(model, load_yaml(file), str(file))
+
+
+def parse_config(data: Any, source: str = "config") -> SuiteConfig:
+    """Validate already-parsed YAML data as a run file (see :func:`parse`)."""
+    return parse(SuiteConfig, data, source)
+
+
+def load_config(path: str | Path) -> SuiteConfig:
+    """Read and validate a YAML run file (see :func:`load`)."""
+    return load(SuiteConfig, path)

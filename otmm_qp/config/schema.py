@@ -27,18 +27,24 @@ Every other key is fixed: an unknown key is an error naming its path.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
+from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
+from otmm_qp.config.loop import LoopSettings
 from otmm_qp.output.paths import RESERVED_NAMES, safe_name
-from otmm_qp.simulation.episode import DEFAULT_MAX_STEPS
 from otmm_qp.simulation.loop_modes import LoopMode
 
-
-class _Strict(BaseModel):
-    # NaN and ±inf are refused in every float field (dt: .inf, clik_gain: .inf, q0: [.nan]).
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+__all__ = [
+    "ControllerConfig",
+    "ExperimentConfig",
+    "LoopMode",
+    "MetricsConfig",
+    "PluginSpec",
+    "SuiteConfig",
+    "check_file_name",
+]
 
 
 def check_file_name(kind: str, name: str) -> str:
@@ -52,20 +58,7 @@ def check_file_name(kind: str, name: str) -> str:
     return name
 
 
-class PluginSpec(BaseModel):
-    """``{type: NAME, **params}``: a registered plugin and its parameters."""
-
-    model_config = ConfigDict(extra="allow", frozen=True)
-
-    type: str = Field(min_length=1)
-
-    @property
-    def params(self) -> dict[str, Any]:
-        """Parameters other than ``type``."""
-        return dict(self.model_extra or {})
-
-
-class MetricsConfig(_Strict):
+class MetricsConfig(Strict):
     """Metric parameters: σ_S for counting, window width [s], blow-up speed [rad/s]."""
 
     sigma_s: float = Field(0.05, gt=0.0)
@@ -73,7 +66,7 @@ class MetricsConfig(_Strict):
     blow_up_speed: float = Field(100.0, gt=0.0)
 
 
-class ControllerConfig(_Strict):
+class ControllerConfig(Strict):
     """A named controller: filters (applied in order) then one backend."""
 
     name: str = Field(min_length=1)
@@ -81,7 +74,7 @@ class ControllerConfig(_Strict):
     backend: PluginSpec
 
 
-class ExperimentConfig(_Strict):
+class ExperimentConfig(Strict):
     """One robot, start, trajectory and the controllers compared on it."""
 
     name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]*$")
@@ -94,9 +87,9 @@ class ExperimentConfig(_Strict):
     dt: float | None = Field(None, gt=0.0)
     loop_modes: list[LoopMode] | None = Field(None, min_length=1)
     clik_gain: float | None = Field(None, ge=0.0)
-    task_weight: list[float] | None = None
+    task_weight: TaskWeight = None
     #: The trajectory leaves the workspace on purpose (a study's beyond-reach task): the
-    #: runner's workspace check is skipped (its shape and finiteness checks still apply).
+    #: runner's trajectory check (``check_reachable``) is skipped, as for study episodes.
     out_of_reach: bool = False
 
     @field_validator("name")
@@ -113,29 +106,14 @@ class ExperimentConfig(_Strict):
             raise ValueError(f"controller names must be unique; repeated: {', '.join(duplicates)}")
         return value
 
-    @field_validator("task_weight")
-    @classmethod
-    def _positive_weight(cls, value: list[float] | None) -> list[float] | None:
-        if value is not None and any(not w > 0.0 for w in value):
-            raise ValueError("every task weight must be > 0")
-        return value
 
-
-def _default_loop_modes() -> list[LoopMode]:
-    return ["clik"]
-
-
-class SuiteConfig(_Strict):
-    """A YAML file: shared defaults and the experiments."""
+class SuiteConfig(LoopSettings):
+    """A YAML run file: shared loop settings (``dt`` defaults to 0.02 s) and the experiments."""
 
     name: str = Field("experiments", min_length=1)
     description: str = ""
-    dt: float = Field(0.02, gt=0.0)
-    loop_modes: list[LoopMode] = Field(default_factory=_default_loop_modes, min_length=1)
-    clik_gain: float = Field(10.0, ge=0.0)
     metrics: MetricsConfig = MetricsConfig()  # frozen, so a shared default is safe
     claims: Literal["paper"] | None = None
-    max_steps: int = Field(DEFAULT_MAX_STEPS, gt=0)
     experiments: list[ExperimentConfig] = Field(min_length=1)
 
     @model_validator(mode="after")

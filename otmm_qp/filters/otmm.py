@@ -60,6 +60,14 @@ class OtmmFilter(TaskFilter):
         self.sigma_s = float(sigma_s)
         self.corank = corank
         self.p_name = p
+        given: object = p  # configs are untyped: check the type of what arrived
+        if not isinstance(given, str):
+            available = ", ".join(registry.available(registry.P_FUNCTIONS))
+            raise ParameterError("p", f"must be a p-function name ({available}), got {given!r:.40}")
+        if p_params is not None and not isinstance(p_params, Mapping):
+            raise ParameterError(
+                "p_params", f"must be a mapping of parameters, got {p_params!r:.40}"
+            )
         params = dict(p_params or {})
         try:
             function = registry.load(registry.P_FUNCTIONS, p)
@@ -67,7 +75,13 @@ class OtmmFilter(TaskFilter):
             raise ConfigError("p", str(error)) from error
         registry.check_parameters(function, params, "p_params", reserved=("s", "sigma_s"))
         self.p_function: PFunction = partial(function, **params) if params else function
-        self.p_function(0.5 * self.sigma_s, self.sigma_s)  # validates p_params early
+        try:
+            self.p_function(0.5 * self.sigma_s, self.sigma_s)  # validates p_params early
+        except (TypeError, ValueError) as error:
+            culprit = registry.blame_parameter(function, params)
+            if culprit is None:
+                raise ParameterError("p_params", f"invalid for p {p!r}: {error}") from None
+            raise ParameterError(f"p_params.{culprit[0]}", culprit[1]) from None
 
     def p(self, sigma: float) -> float:
         """Suppression level ``k·p(σ)`` in [0, 1]: 0 above σ_S."""

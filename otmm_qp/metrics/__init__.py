@@ -1,5 +1,15 @@
-"""Run metrics."""
+"""Run metrics: their definitions (``metrics.py``) and the one table of labels (``table.py``)."""
 
 from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics, MetricSettings, compute_metrics
+from otmm_qp.metrics.table import METRICS, Metric, columns, metric
 
-__all__ = ["METRIC_NAMES", "MetricSettings", "Metrics", "compute_metrics"]
+__all__ = [
+    "METRICS",
+    "METRIC_NAMES",
+    "Metric",
+    "MetricSettings",
+    "Metrics",
+    "columns",
+    "compute_metrics",
+    "metric",
+]

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from otmm_qp.metrics.table import METRICS
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.status import DIVERGENCE_SPEED, Status
 
@@ -46,34 +47,8 @@ class MetricSettings:
     blow_up_speed: float = DIVERGENCE_SPEED
 
 
-METRIC_NAMES: tuple[str, ...] = (
-    "max_error",
-    "rms_error",
-    "max_error_window",
-    "rms_error_window",
-    "final_error",
-    "max_orientation_error",
-    "rms_orientation_error",
-    "max_joint_speed",
-    "initial_jump",
-    "chattering",
-    "max_jump",
-    "accel_sign_changes",
-    "min_sigma",
-    "t_min_sigma",
-    "steps_below_sigma_s",
-    "max_weak_speed",
-    "blow_up",
-    "position_violations",
-    "max_position_excess",
-    "velocity_violations",
-    "max_velocity_excess",
-    *(f"status_{s.value}" for s in Status),
-    "step_time_median_us",
-    "step_time_p99_us",
-    "steps",
-    "completed",
-)
+#: Column names of every metric, in order (the rows of :data:`~otmm_qp.metrics.table.METRICS`).
+METRIC_NAMES: tuple[str, ...] = tuple(m.name for m in METRICS)
 
 
 def _safe_max(values: np.ndarray) -> float:

@@ -43,6 +43,7 @@ from otmm_qp.runner import interrupt
 from otmm_qp.runner.prepare import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.status import Status
 
 #: Resolution of the written PNGs [dots per inch].
 DPI = 110
@@ -52,12 +53,9 @@ SYMLOG_RATIO = 20.0
 LOG_DECADES = 2.0
 #: Lowest decade shown on a log axis, counted down from the largest value.
 LOG_FLOOR_DECADES = 7.0
-#: Marker style per backend status other than ``ok``: (marker, colour).
+#: Marker style per backend status other than ``ok``: (marker, colour), from ``Status.marker``.
 STATUS_STYLE: dict[str, tuple[str, str]] = {
-    "bounded": ("v", "tab:orange"),
-    "infeasible": ("X", "tab:red"),
-    "stuck": ("s", "tab:purple"),
-    "nonfinite": ("D", "black"),
+    str(status): status.marker for status in Status if status.marker is not None
 }
 _OTHER_STATUS = ("o", "tab:brown")
 _STOP_COLOUR = "tab:red"
@@ -715,22 +713,42 @@ def _die_with_parent() -> None:
             os._exit(1)
 
 
+def _draw_on_pool(jobs: list[_Job], workers: int) -> None:
+    """Draw ``jobs`` on ``workers`` forked processes; a stop signal never leaves one behind.
+
+    The pool is made and every job submitted (which forks all workers: the ``fork`` context
+    starts them at the first submit) with stop signals deferred
+    (:func:`~otmm_qp.runner.interrupt.deferred_stop_signals`): SIGTERM/SIGINT arriving while
+    the pool starts once raised KeyboardInterrupt inside ``ProcessPoolExecutor`` start-up,
+    leaving it half made (a traceback instead of exit 130). A deferred signal is raised as
+    soon as the start-up is complete, inside the ``try`` that shuts the pool down; shutting
+    down defers them too, so the pool is always shut down completely.
+    """
+    context = multiprocessing.get_context("fork")
+    pool: ProcessPoolExecutor | None = None
+    try:
+        with interrupt.deferred_stop_signals():
+            pool = ProcessPoolExecutor(
+                max_workers=workers, mp_context=context, initializer=_die_with_parent
+            )
+            results = pool.map(_draw_job, jobs)
+        for _ in results:
+            interrupt.check()  # re-raises the first failure of a worker, or a stop
+    except BaseException:
+        # Interrupted (SIGINT/SIGTERM) or failed: drop the queued drawings, then wait for
+        # the workers to finish their current one and exit; none is left behind.
+        if pool is not None:
+            with contextlib.suppress(KeyboardInterrupt), interrupt.deferred_stop_signals():
+                pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    with interrupt.deferred_stop_signals():  # a stop now is raised once every worker exited
+        pool.shutdown(wait=True)
+
+
 def _draw_all(jobs: list[_Job], workers: int) -> None:
     """Draw ``jobs`` serially, or on ``workers`` forked processes where fork exists."""
     if workers > 1 and len(jobs) > 1 and "fork" in multiprocessing.get_all_start_methods():
-        context = multiprocessing.get_context("fork")
-        pool = ProcessPoolExecutor(
-            max_workers=min(workers, len(jobs)), mp_context=context, initializer=_die_with_parent
-        )
-        try:
-            for _ in pool.map(_draw_job, jobs):
-                interrupt.check()  # re-raises the first failure of a worker, or a stop
-        except BaseException:
-            # Interrupted (SIGINT/SIGTERM) or failed: drop the queued drawings, then wait for
-            # the workers to finish their current one and exit; none is left behind.
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
-        pool.shutdown(wait=True)
+        _draw_on_pool(jobs, min(workers, len(jobs)))
         return
     for job in jobs:
         _draw_job(job)

@@ -110,7 +110,9 @@ def folder_kind(folder: Path) -> str | None:
 def _written_by_otmm(path: Path) -> bool:
     """A folder holding only folders and files with suffixes otmm-qp writes (no symlinks)."""
     return all(
-        not p.is_symlink() and (p.is_dir() or p.suffix in WRITTEN_SUFFIXES) for p in path.rglob("*")
+        not p.is_symlink()
+        and (p.is_dir() or p.suffix in WRITTEN_SUFFIXES or p.name in (LOCK_NAME, KIND_NAME))
+        for p in path.rglob("*")
     )
 
 

@@ -14,7 +14,6 @@ run per objective, the runs no other run dominates) and ``DIR/pareto.png``.
 from __future__ import annotations
 
 import argparse
-import csv
 import io
 import math
 import sys
@@ -23,11 +22,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.metrics.table import metric
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text
+from otmm_qp.output.results import IDENTITY_COLUMNS, ResultsDir
 from otmm_qp.output.summary import RunOutcome
 
-#: The objectives, all minimised.
-OBJECTIVES: tuple[str, ...] = ("max_error_window", "max_joint_speed", "max_jump")
+#: The objectives, all minimised (rows of the metric table with ``lower_is_better``).
+OBJECTIVES: tuple[str, ...] = tuple(
+    m.name
+    for m in map(metric, ("max_error_window", "max_joint_speed", "max_jump"))
+    if m.lower_is_better
+)
 
 
 @dataclass(frozen=True)
@@ -61,22 +66,14 @@ def pareto_front(entries: Sequence[Entry]) -> list[Entry]:
 
 
 def read_summary(path: Path) -> list[Entry]:
-    """Entries of one ``summary.csv``.
+    """Entries of one ``summary.csv`` (read by :meth:`ResultsDir.summary_records`).
 
     Raises:
-        OtmmError: The file is missing or lacks a needed column.
+        OtmmError: The file is missing, unreadable or lacks a needed column.
     """
-    if not path.is_file():
-        raise OtmmError(f"{path}: no summary.csv (run `otmm-qp run` first)")
-    with path.open(newline="", encoding="utf-8") as handle:
-        rows = list(csv.DictReader(handle))
+    records = ResultsDir(path.parent).summary_records((*IDENTITY_COLUMNS, *OBJECTIVES))
     entries = []
-    for row in rows:
-        missing = [
-            c for c in ("experiment", "loop_mode", "controller", *OBJECTIVES) if c not in row
-        ]
-        if missing:
-            raise OtmmError(f"{path}: missing column(s) {', '.join(missing)}")
+    for row in records:
         if row.get("outcome") == RunOutcome.SKIPPED:
             continue
         try:

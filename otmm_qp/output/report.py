@@ -28,8 +28,6 @@ Sections:
 from __future__ import annotations
 
 import base64
-import csv
-import io
 import math
 import re
 from collections.abc import Sequence
@@ -37,20 +35,24 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from otmm_qp.exceptions import ConfigError, OutputPathError
+from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
+from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
+from otmm_qp.status import Status
 
-#: ``(column, label, format)`` shown per scenario; every column is lower-is-better.
-REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = (
-    ("rms_error", "rms err [m]", ".2e"),
-    ("max_error", "max err [m]", ".2e"),
-    ("max_error_window", "max err window [m]", ".2e"),
-    ("max_joint_speed", "max ‖q̇‖∞ [rad/s]", ".3g"),
-    ("chattering", "chattering Σ‖Δq̇‖₁ [rad/s]", ".3g"),
-    ("max_jump", "max ‖Δq̇‖∞ [rad/s]", ".3g"),
-    ("position_violations", "limit viol. [steps]", ".0f"),
-    ("step_time_median_us", "median [µs/step]", ".1f"),
+#: ``(column, heading, format)`` shown per scenario, from the metric table; every column is
+#: lower-is-better (``tests/test_metric_table.py``).
+REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = columns(
+    "rms_error",
+    "max_error",
+    "max_error_window",
+    "max_joint_speed",
+    "chattering",
+    "max_jump",
+    "position_violations",
+    "step_time_median_us",
 )
 #: Metrics entering the ranking score.
 RANKED_METRICS = ("rms_error", "max_error_window", "max_joint_speed", "chattering")
@@ -119,45 +121,28 @@ def _count(text: str | None) -> int:
 
 
 #: Backend statuses that mean a bound was relaxed or could not be met on that step.
-RELAXED_STATUSES = ("relaxed", "infeasible")
+RELAXED_STATUSES = tuple(str(status) for status in Status if status.relaxes_bound)
 
 
 def _read_text(results_dir: Path, path: Path) -> str:
-    """A text file of the results folder; refuses links out of it and non-UTF-8 bytes."""
-    ensure_inside(results_dir, path)
-    try:
-        return path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ConfigError(str(path), "not UTF-8 text; is this a results folder?") from None
-    except OSError as error:
-        raise ConfigError(str(path), f"cannot read: {error.strerror}") from None
+    """A text file of the results folder (see :meth:`ResultsDir.read_text`)."""
+    return ResultsDir(results_dir).read_text(path)
 
 
 def read_summary(path: Path) -> list[Row]:
-    """Rows of ``summary.csv``.
+    """Rows of ``summary.csv`` (read by :meth:`ResultsDir.summary_records`).
 
     Raises:
-        ConfigError: The file is missing or lacks the identity columns.
+        ConfigError: The file is missing, unreadable or lacks the identity columns.
     """
-    if not path.is_file():
-        raise ConfigError(str(path), "no summary.csv here; run an experiment first")
-    text = _read_text(path.parent, path)
-    try:
-        reader = csv.DictReader(io.StringIO(text, newline=""))
-        required = {"experiment", "loop_mode", "controller"}
-        if not required <= set(reader.fieldnames or ()):
-            raise ConfigError(str(path), f"missing columns {', '.join(sorted(required))}")
-        return [_row(record) for record in reader]
-    except csv.Error as error:
-        raise ConfigError(str(path), f"not a readable CSV: {str(error)[:120]}") from None
+    return [_row(record) for record in ResultsDir(path.parent).summary_records()]
 
 
-def _row(record: dict[str, str | None]) -> Row:
+def _row(record: dict[str, str]) -> Row:
     """One summary row; cells missing from a truncated file read as empty."""
 
     def cell(key: str) -> str:
-        value = record.get(key)
-        return value if isinstance(value, str) else ""
+        return record.get(key, "")
 
     return Row(
         cell("experiment"),

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
+from otmm_qp.metrics.table import columns
 from otmm_qp.output.paths import atomic_open, atomic_write_text
 
 ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
@@ -24,20 +25,20 @@ class RunOutcome(str, enum.Enum):
         return str(self.value)
 
 
-#: Columns shown in the Markdown table (the CSV has all of them).
-MARKDOWN_COLUMNS = (
-    ("max_error", "max err [m]", ".2e"),
-    ("rms_error", "rms err [m]", ".2e"),
-    ("max_error_window", "max err window [m]", ".2e"),
-    ("max_joint_speed", "max ‖q̇‖∞ [rad/s]", ".3g"),
-    ("initial_jump", "initial jump [rad/s]", ".3g"),
-    ("chattering", "chattering Σ‖Δq̇‖₁", ".3g"),
-    ("max_jump", "max ‖Δq̇‖∞", ".3g"),
-    ("min_sigma", "min σ", ".2e"),
-    ("steps_below_sigma_s", "steps σ<σS", "d"),
-    ("position_violations", "limit viol.", "d"),
-    ("blow_up", "blow-up", ""),
-    ("step_time_median_us", "median µs/step", ".1f"),
+#: Columns shown in the Markdown table (the CSV has all of them), from the metric table.
+MARKDOWN_COLUMNS = columns(
+    "max_error",
+    "rms_error",
+    "max_error_window",
+    "max_joint_speed",
+    "initial_jump",
+    "chattering",
+    "max_jump",
+    "min_sigma",
+    "steps_below_sigma_s",
+    "position_violations",
+    "blow_up",
+    "step_time_median_us",
 )
 
 

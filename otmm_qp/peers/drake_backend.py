@@ -4,22 +4,20 @@ from __future__ import annotations
 
 import importlib
 import logging
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.backends.backend import (
-    STATUS_INFEASIBLE,
-    STATUS_OK,
-    STATUS_STUCK,
-    BackendOutput,
-)
+from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.limits import LimitSpec
 from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, root_link
-from otmm_qp.peers.peer_backend import PeerBackend, check_limit_gain, require
+from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 #: Name of the frame added at the end effector of the Drake plant.
 DRAKE_FRAME = "otmm_ee"
@@ -45,9 +43,12 @@ class DrakeBackend(PeerBackend):
 
     Args:
         stuck_scaling: α below which Drake reports ``stuck``, in ``[0, 1)``.
-        limit_gain: ``g ∈ (0, 1]``: Drake's position constraint ``θ_min ≤ θ + q̇·dt ≤ θ_max``
-            is given the limits ``θ ± g·(θ_max − θ)`` each step, so it bounds ``q̇`` by
-            ``g(θ_max − θ)/dt`` as ``qp`` does.
+        limits: The ``limits`` list of ``qp`` restricted to ``velocity`` (Drake's joint
+            velocity limits) and ``position``: for gain ``g`` Drake's position constraint
+            ``θ_min ≤ θ + q̇·dt ≤ θ_max`` is given the limits ``θ ± g·(θ_max − θ)`` each step,
+            so it bounds ``q̇`` by ``g(θ_max − θ)/dt`` as ``qp`` does; ``true`` / None: both,
+            gain 0.5; ``false``: none.
+        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: pydrake is not installed.
@@ -57,12 +58,17 @@ class DrakeBackend(PeerBackend):
     name = "drake"
     peer = "drake"
 
-    def __init__(self, stuck_scaling: float = 0.01, limit_gain: float = 0.5) -> None:
+    def __init__(
+        self,
+        stuck_scaling: float = 0.01,
+        limits: bool | Sequence[LimitSpec] | None = None,
+        limit_gain: float | None = None,
+    ) -> None:
         require("drake", ["pydrake.multibody.inverse_kinematics", "pydrake.multibody.plant"])
         if not 0.0 <= stuck_scaling < 1.0:
             raise ParameterError("stuck_scaling", f"must be in [0, 1), got {stuck_scaling}")
         self.stuck_scaling = float(stuck_scaling)
-        self.limit_gain = check_limit_gain(limit_gain)
+        self.configure_limits(limits, limit_gain)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""
@@ -85,6 +91,8 @@ class DrakeBackend(PeerBackend):
             plant.num_positions(), plant.num_velocities()
         )
         parameters.set_time_step(dt)
+        limits = peer_limits(self.limit_set, robot, dt)
+        self._gain = limits.gain
         lower, upper = robot.position_limits
         q_low = np.full(plant.num_positions(), -np.inf)
         q_high = np.full(plant.num_positions(), np.inf)
@@ -92,7 +100,8 @@ class DrakeBackend(PeerBackend):
         self._lower, self._upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         parameters.set_joint_position_limits((q_low, q_high))
         v_max = np.full(plant.num_velocities(), np.inf)
-        v_max[self._map.velocity_index] = robot.velocity_limits
+        if limits.speed is not None:
+            v_max[self._map.velocity_index] = limits.speed
         parameters.set_joint_velocity_limits((-v_max, v_max))
         parameters.set_maximum_scaling_to_report_stuck(self.stuck_scaling)
         # Drake orders a twist (ωx, ωy, ωz, vx, vy, vz); our rows index (v, ω).
@@ -110,20 +119,22 @@ class DrakeBackend(PeerBackend):
         """Drake's joint velocity [rad/s], shape ``(nv,)``, for the commanded velocity."""
         theta = self.robot.joint_coordinates(state.q)
         self._plant.SetPositions(self._context, self._map.to_peer(theta, self._q0))
-        q_low, q_high = self._limit_arrays
-        gain, index = self.limit_gain, self._map.position_index
-        q_low[index] = theta - gain * (theta - self._lower)  # ±inf stays ±inf
-        q_high[index] = theta + gain * (self._upper - theta)
-        self._parameters.set_joint_position_limits((q_low, q_high))
+        gain = self._gain
+        if gain is not None:
+            q_low, q_high = self._limit_arrays
+            index = self._map.position_index
+            q_low[index] = theta - gain * (theta - self._lower)  # ±inf stays ±inf
+            q_high[index] = theta + gain * (self._upper - theta)
+            self._parameters.set_joint_position_limits((q_low, q_high))
         twist = np.zeros(6)  # V_WE = (ω, v), world axes
         twist[self._twist_index] = self.physical_velocity(state, xdot)
         result = self._ik.DoDifferentialInverseKinematics(
             self._plant, self._context, twist, self._frame, self._parameters
         )
         if result.status == self._status.kNoSolutionFound or result.joint_velocities is None:
-            return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
+            return BackendOutput(np.zeros(self.robot.nv), Status.INFEASIBLE)
         qdot = self._map.from_peer_velocity(np.asarray(result.joint_velocities).ravel())
-        status = STATUS_STUCK if result.status == self._status.kStuck else STATUS_OK
+        status = Status.STUCK if result.status == self._status.kStuck else Status.OK
         return BackendOutput(qdot, status)
 
 

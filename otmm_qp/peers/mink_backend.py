@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
+from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
+from otmm_qp.limits import LimitSpec
 from otmm_qp.peers.models import (
     JointMap,
     PinocchioPeerModel,
@@ -15,10 +17,11 @@ from otmm_qp.peers.models import (
     mujoco_joint_map,
     mujoco_model,
 )
-from otmm_qp.peers.peer_backend import PeerBackend, require
+from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
 from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
@@ -44,10 +47,15 @@ class MinkBackend(PeerBackend):
 
     Args:
         solver: qpsolvers backend name (``daqp``, ``proxqp``, ``osqp``, ...).
-        damping: Tikhonov weight μ ≥ 0 of mink's ``solve_ik``.
+        damping: λ ≥ 0 [task units], the meaning of ``damping`` in every backend: mink's
+            Tikhonov weight is μ = λ².
+        regularization: Mink's Tikhonov weight μ ≥ 0 itself (instead of ``damping``);
+            10⁻¹² when neither is given.
         lm_damping: Levenberg–Marquardt damping ≥ 0 of the frame task.
-        limits: Enforce configuration and velocity limits.
-        limit_gain: ``g ∈ (0, 1]`` of the configuration limits (``qp``'s ``limit_gain``).
+        limits: The ``limits`` list of ``qp`` restricted to ``velocity`` (mink's
+            ``VelocityLimit``) and ``position`` (``ConfigurationLimit`` with ``gain``);
+            ``true`` / None: both, gain 0.5; ``false``: none.
+        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: mink or mujoco is not installed.
@@ -61,13 +69,14 @@ class MinkBackend(PeerBackend):
     def __init__(
         self,
         solver: str = "daqp",
-        damping: float = 1e-12,
+        damping: float | None = None,
+        regularization: float | None = None,
         lm_damping: float = 0.0,
-        limits: bool = True,
-        limit_gain: float = 0.5,
+        limits: bool | Sequence[LimitSpec] | None = None,
+        limit_gain: float | None = None,
     ) -> None:
         require("mink", ["mujoco", "mink"])
-        self.configure_qp(solver, damping, lm_damping, limits, limit_gain)
+        self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build the MuJoCo model, check it against Pinocchio, set up task and limits.
@@ -96,13 +105,15 @@ class MinkBackend(PeerBackend):
         self._data = VelocityTaskData(self.task_rows)
         self._task = _mink_velocity_task(site, self._data, self.lm_damping)
         self._limits: list[Any] = []
-        if self.use_limits:
+        limits = peer_limits(self.limit_set, robot, dt)
+        if limits.gain is not None:
+            self._limits.append(mink.ConfigurationLimit(model, gain=limits.gain))
+        if limits.speed is not None:
             speeds = {
                 name: float(v)
-                for name, v in zip(robot.joint_names, robot.velocity_limits, strict=True)
+                for name, v in zip(robot.joint_names, limits.speed, strict=True)
                 if np.isfinite(v)
             }
-            self._limits = [mink.ConfigurationLimit(model, gain=self.limit_gain)]
             if speeds:
                 self._limits.append(mink.VelocityLimit(model, speeds))
 
@@ -121,12 +132,12 @@ class MinkBackend(PeerBackend):
                 [self._task],
                 self.dt,
                 self.solver,
-                damping=self.damping,
+                damping=self.regularization,
                 limits=self._limits,
             )
         except mink.MinkError:
-            return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
-        return BackendOutput(self._map.from_peer_velocity(velocity), STATUS_OK)
+            return BackendOutput(np.zeros(self.robot.nv), Status.INFEASIBLE)
+        return BackendOutput(self._map.from_peer_velocity(velocity), Status.OK)
 
 
 def write_position_limits(model: Any, robot: Robot, joint_map: JointMap) -> None:

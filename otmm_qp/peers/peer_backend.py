@@ -21,17 +21,22 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
-from otmm_qp.backends.backend import Backend
+from otmm_qp.backends.backend import Backend, damping_weight
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
+from otmm_qp.limits import LimitSet, LimitSpec, PositionLimit, VelocityLimit, make_limits
 from otmm_qp.peers.models import describe
 from otmm_qp.peers.velocity_task import task_rows
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+
+#: The peers' Tikhonov weight μ when neither ``damping`` nor ``regularization`` is given.
+DEFAULT_REGULARIZATION = 1e-12
 
 #: ``pip install`` hint shown when a peer is missing.
 INSTALL_HINTS: dict[str, str] = {
@@ -56,15 +61,62 @@ def require(peer: str, modules: Sequence[str]) -> None:
             ) from error
 
 
-def check_limit_gain(limit_gain: float) -> float:
-    """``limit_gain`` as a float in (0, 1] (the position-limit gain ``g`` of ``qp``).
+class PeerLimits(NamedTuple):
+    """A backend's limits in the terms every peer takes (pink, mink, Drake).
+
+    Attributes:
+        speed: Joint speed limits [rad/s], shape ``(nv,)`` (inf: unlimited), of the
+            ``velocity`` limits (their intersection); None when the backend has no limits.
+        gain: Position gain ``g ∈ (0, 1]`` of the ``position`` limits (the smallest, which is
+            their intersection), or None when there is none.
+    """
+
+    speed: FloatArray | None
+    gain: float | None
+
+
+#: The limit types the peers map one-to-one onto their own limits.
+PEER_LIMITS = (VelocityLimit, PositionLimit)
+
+
+def peer_limit_set(
+    limits: bool | Sequence[LimitSpec] | None, limit_gain: float | None, peer: str
+) -> LimitSet:
+    """The :class:`~otmm_qp.limits.LimitSet` of a peer adapter's ``limits`` option.
+
+    ``limits`` is the list form of :mod:`otmm_qp.limits.options`, or ``true`` / None (the
+    default ``velocity`` + ``{type: position, gain: 0.5}``), or ``false`` (no limits).
 
     Raises:
-        ParameterError: Outside (0, 1] or not finite.
+        ParameterError: A limit the peer has no counterpart of (anything but ``velocity`` and
+            ``position``), or an invalid entry.
     """
-    if not (np.isfinite(limit_gain) and 0.0 < limit_gain <= 1.0):
-        raise ParameterError("limit_gain", f"must be in (0, 1], got {limit_gain}")
-    return float(limit_gain)
+    if limits is False:
+        return LimitSet((), ())
+    entries = None if limits is None or limits is True else limits
+    made = make_limits(entries, {"limit_gain": limit_gain})
+    for limit in made.all:
+        if type(limit) not in PEER_LIMITS:
+            raise ParameterError(
+                "limits",
+                f"{peer} has no counterpart of limit {limit.name!r}; allowed: velocity, position",
+            )
+    return made
+
+
+def peer_limits(limit_set: LimitSet, robot: Robot, dt: float) -> PeerLimits:
+    """Bind ``limit_set`` and reduce it to the :class:`PeerLimits` a peer takes."""
+    if not limit_set.boxes:
+        return PeerLimits(None, None)
+    speed = np.full(robot.nv, np.inf)
+    gain: float | None = None
+    for limit in limit_set.boxes:
+        limit.bind(robot, dt)
+        if isinstance(limit, VelocityLimit):
+            speed = np.minimum(speed, limit.speed)
+        elif isinstance(limit, PositionLimit):
+            gain = limit.gain if gain is None else min(gain, limit.gain)
+    return PeerLimits(speed, gain)
 
 
 class PeerBackend(Backend):
@@ -118,28 +170,49 @@ class PeerBackend(Backend):
         target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
         return target
 
+    def configure_limits(
+        self, limits: bool | Sequence[LimitSpec] | None, limit_gain: float | None
+    ) -> None:
+        """Validate and store the limits (:func:`peer_limit_set`); read back at :meth:`bind`.
+
+        Raises:
+            ParameterError: See :func:`peer_limit_set`.
+        """
+        self.limit_set = peer_limit_set(limits, limit_gain, self.peer)
+        self.enforces_limits = bool(self.limit_set.boxes)
+
     def configure_qp(
-        self, solver: str, damping: float, lm_damping: float, limits: bool, limit_gain: float
+        self,
+        solver: str,
+        weights: tuple[float | None, float | None, float],
+        limits: bool | Sequence[LimitSpec] | None,
+        limit_gain: float | None,
     ) -> None:
         """Validate and store the settings shared by the QP-based peers (pink, mink).
 
+        Args:
+            solver: An installed qpsolvers backend.
+            weights: ``(damping λ, regularization μ, lm_damping)``: the library's Tikhonov
+                weight is μ (``damping`` gives μ = λ², :func:`damping_weight`; 10⁻¹² when
+                neither is given) and its Levenberg–Marquardt damping ``lm_damping ≥ 0``.
+            limits: The ``limits`` option (:func:`peer_limit_set`).
+            limit_gain: Older form of ``{type: position, gain: g}``.
+
         Raises:
             SolverNotFound: ``solver`` is not an installed qpsolvers backend.
-            ParameterError: A damping is negative or not finite, or ``limit_gain`` is not in
-                (0, 1].
+            ParameterError: A damping is negative or not finite, or a limit is invalid.
         """
         import qpsolvers
 
         if solver not in qpsolvers.available_solvers:
             raise SolverNotFound(solver, qpsolvers.available_solvers)
-        for field, value in (("damping", damping), ("lm_damping", lm_damping)):
-            if not (np.isfinite(value) and value >= 0.0):
-                raise ParameterError(field, f"must be a finite number >= 0, got {value}")
+        damping, regularization, lm_damping = weights
+        if not (np.isfinite(lm_damping) and lm_damping >= 0.0):
+            raise ParameterError("lm_damping", f"must be a finite number >= 0, got {lm_damping}")
         self.solver = solver
-        self.damping = float(damping)
+        self.regularization = damping_weight(damping, regularization, DEFAULT_REGULARIZATION)
         self.lm_damping = float(lm_damping)
-        self.use_limits = bool(limits)
-        self.limit_gain = check_limit_gain(limit_gain)
+        self.configure_limits(limits, limit_gain)
 
     def orientation_weight(self) -> float:
         """1 when the task commands the angular velocity (pose tasks), else 0."""

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from otmm_qp.backends.backend import STATUS_INFEASIBLE, STATUS_OK, BackendOutput
+from otmm_qp.backends.backend import BackendOutput
+from otmm_qp.limits import LimitSpec
 from otmm_qp.peers.models import PinocchioPeerModel
-from otmm_qp.peers.peer_backend import PeerBackend, require
+from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
 from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -51,10 +54,16 @@ class PinkBackend(PeerBackend):
 
     Args:
         solver: qpsolvers backend name, e.g. ``daqp``, ``proxqp``, ``osqp``, ``quadprog``.
-        damping: Tikhonov weight μ ≥ 0 of pink's ``solve_ik`` [cost]/[rad²].
+        damping: λ ≥ 0 [task units], the meaning of ``damping`` in every backend: pink's
+            Tikhonov weight is μ = λ².
+        regularization: Pink's Tikhonov weight μ ≥ 0 itself [cost]/[rad²] (instead of
+            ``damping``); 10⁻¹² when neither is given.
         lm_damping: Levenberg–Marquardt damping ≥ 0 of the frame task.
-        limits: Enforce configuration and velocity limits.
-        limit_gain: ``g ∈ (0, 1]`` of the configuration limits (``qp``'s ``limit_gain``).
+        limits: The ``limits`` list of ``qp`` restricted to ``velocity`` (pink's
+            ``VelocityLimit``, the model's speed limits capped by ``max_speed``) and
+            ``position`` (``ConfigurationLimit`` with ``gain``); ``true`` / None: both, gain
+            0.5; ``false``: none.
+        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: pink is not installed.
@@ -68,13 +77,14 @@ class PinkBackend(PeerBackend):
     def __init__(
         self,
         solver: str = "daqp",
-        damping: float = 1e-12,
+        damping: float | None = None,
+        regularization: float | None = None,
         lm_damping: float = 0.0,
-        limits: bool = True,
-        limit_gain: float = 0.5,
+        limits: bool | Sequence[LimitSpec] | None = None,
+        limit_gain: float | None = None,
     ) -> None:
         require("pink", ["pink"])
-        self.configure_qp(solver, damping, lm_damping, limits, limit_gain)
+        self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build pink's configuration, velocity task and limits for ``robot`` (``dt`` in [s]).
@@ -89,19 +99,19 @@ class PinkBackend(PeerBackend):
         logging.getLogger().addFilter(_PINK_FILTER)  # idempotent: a filter is added once
         self._solve_ik = pink.solve_ik
         self._pinocchio = PinocchioPeerModel.create(self.description, robot)
-        model = limited_model(self._pinocchio.model, robot)
+        limits = peer_limits(self.limit_set, robot, dt)
+        model = limited_model(self._pinocchio.model, robot, limits.speed)
         frame_id = self._pinocchio.frame_id
         self._model = model
         self._frame = str(model.frames[frame_id].name)
         self._configuration = pink.Configuration(model, model.createData(), pin.neutral(model))
         self._data = VelocityTaskData(self.task_rows)
         self._task = _pink_velocity_task(frame_id, self._data, self.lm_damping)
-        self._limits: list[Any] = []
-        if self.use_limits:
-            self._limits = [  # both read the limits limited_model wrote into the model
-                ConfigurationLimit(model, config_limit_gain=self.limit_gain),
-                VelocityLimit(model),
-            ]
+        self._limits: list[Any] = []  # both read the limits limited_model wrote into the model
+        if limits.gain is not None:
+            self._limits.append(ConfigurationLimit(model, config_limit_gain=limits.gain))
+        if limits.speed is not None:
+            self._limits.append(VelocityLimit(model))
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
@@ -118,20 +128,26 @@ class PinkBackend(PeerBackend):
                 [self._task],
                 self.dt,
                 solver=self.solver,
-                damping=self.damping,
+                damping=self.regularization,
                 limits=self._limits,
                 safety_break=False,
             )
         except PinkError:
-            return BackendOutput(np.zeros(self.robot.nv), STATUS_INFEASIBLE)
-        return BackendOutput(self._pinocchio.velocity(velocity), STATUS_OK)
+            return BackendOutput(np.zeros(self.robot.nv), Status.INFEASIBLE)
+        return BackendOutput(self._pinocchio.velocity(velocity), Status.OK)
 
 
-def limited_model(model: Any, robot: Robot) -> Any:
-    """A copy of ``model`` with the robot's effective position and speed limits written in."""
+def limited_model(model: Any, robot: Robot, speeds: FloatArray | None = None) -> Any:
+    """A copy of ``model`` with the robot's effective position and speed limits written in.
+
+    Args:
+        model: The peer's ``pin.Model``.
+        robot: The robot (its position limits, overrides included).
+        speeds: The speed limits [rad/s], shape ``(nv,)``; the robot's when None.
+    """
     model = pin.Model(model)
     lower, upper = robot.position_limits
-    speeds = robot.velocity_limits
+    speeds = robot.velocity_limits if speeds is None else speeds
     for index, name in enumerate(robot.joint_names):
         joint = model.joints[model.getJointId(name)]
         if joint.nq == 1:  # revolute / prismatic; continuous joints stay unbounded

@@ -133,20 +133,90 @@ def load_robot(runs: Sequence[StoredRun]) -> Robot:
         ConfigError: A malformed ``robot.json`` or an unidentifiable robot.
         OtmmError: The recorded robot cannot be built (e.g. its URDF moved).
     """
-    record = runs[0].path.parent.parent / ROBOT_RECORD
-    if record.is_file():
-        from otmm_qp import registry
+    from otmm_qp.runner.build import captured_stderr
 
-        try:
-            spec = json.loads(record.read_text(encoding="utf-8"))
-            robot_type, params = str(spec["type"]), dict(spec.get("params") or {})
-        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
-            raise ConfigError(str(record), f"malformed robot record: {error}") from error
-        robot: Robot = registry.create(registry.ROBOTS, robot_type, params, str(record))
+    record = runs[0].path.parent.parent / ROBOT_RECORD
+    if record.is_file() or record.is_symlink():
+        robot = _recorded_robot(record)
+        check_reproduces(robot, runs, str(record))
         return robot
     if runs[0].dimension == 2:
         return fit_planar_arm(runs)
-    return identify_urdf_arm(runs)
+    with captured_stderr():  # urdfdom lines are dropped when no arm matches
+        return identify_urdf_arm(runs)
+
+
+#: Largest ``robot.json`` read [bytes].
+MAX_RECORD_BYTES = 64 * 1024
+#: Largest stored-vs-recomputed position mismatch accepted for a recorded robot [m, relative
+#: to max(1 m, the largest coordinate)]: the CSVs keep 9 significant digits.
+RECORD_TOLERANCE = 1.0e-5
+
+
+def _recorded_robot(record: Path) -> Robot:
+    """The robot a ``robot.json`` describes, built as a config's robot block is.
+
+    Raises:
+        ConfigError: A symlink, a file over :data:`MAX_RECORD_BYTES`, not a JSON object with a
+            string ``type`` and an object ``params``, or parameters the robot refuses.
+    """
+    from otmm_qp.config.schema import PluginSpec
+    from otmm_qp.runner.build import load_robot as build_robot
+
+    field = str(record)
+    if record.is_symlink():
+        raise ConfigError(field, "is a symlink; a robot record must be a plain file")
+    try:
+        if record.stat().st_size > MAX_RECORD_BYTES:
+            raise ConfigError(field, f"is larger than {MAX_RECORD_BYTES} bytes; not a robot record")
+        spec = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError) as error:
+        reason = "nested too deeply" if isinstance(error, RecursionError) else _short(error)
+        raise ConfigError(field, f"malformed robot record: {reason}") from None
+    if not isinstance(spec, dict) or not isinstance(spec.get("type"), str):
+        raise ConfigError(field, 'expected {"type": NAME, "params": {...}} (the robot block)')
+    params = spec.get("params") or {}
+    if not isinstance(params, dict) or "type" in params:
+        raise ConfigError(f"{field}: params", "must be an object of robot parameters")
+    return build_robot(PluginSpec(type=spec["type"], **params), f"{field}: robot")
+
+
+def _short(error: BaseException) -> str:
+    text = str(error).splitlines()[0] if str(error) else type(error).__name__
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def check_reproduces(robot: Robot, runs: Sequence[StoredRun], field: str) -> None:
+    r"""Require ``robot`` to put its task point on the stored positions of ``runs``.
+
+    Checks up to 8 finite steps per run: :math:`\max_k \|f(q_k)_{1..d} - x_k\|_\infty \le`
+    :data:`RECORD_TOLERANCE` :math:`\cdot \max(1, \max_k \|x_k\|_\infty)`.
+
+    Raises:
+        ConfigError: Another joint count, non-finite or mismatching kinematics.
+    """
+    worst, scale = 0.0, 1.0
+    for run in runs:
+        if run.q.shape[1] != robot.nv:
+            raise ConfigError(
+                field,
+                f"describes a robot with {robot.nv} joints; {run.path.name} has {run.q.shape[1]}",
+            )
+        d = run.dimension
+        for k in _sample_rows(run):
+            with np.errstate(all="ignore"):
+                x = np.asarray(robot.forward(joint_configuration(robot, run.q[k])), dtype=float)
+            point = x[:3, 3] if x.ndim == 2 else x.ravel()  # a pose task gives a 4x4 transform
+            if point.size < d or not np.all(np.isfinite(point[:d])):
+                raise ConfigError(field, "its kinematics are not finite at the stored joints")
+            worst = max(worst, float(np.max(np.abs(point[:d] - run.position[k]))))
+            scale = max(scale, float(np.max(np.abs(run.position[k]))))
+    if worst > RECORD_TOLERANCE * scale:
+        raise ConfigError(
+            field,
+            f"does not reproduce the stored end-effector positions (off by {worst:.3g} m); "
+            "it must be the robot block of the config that wrote these runs",
+        )
 
 
 def joint_configuration(robot: Robot, coordinates: FloatArray) -> FloatArray:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import csv
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,6 +75,14 @@ class StoredRun:
         return (self.experiment, self.loop_mode)
 
 
+#: Most rows kept of one time series; longer ones are thinned evenly while they are read
+#: (a replay shows at most a few hundred frames), so a 10^7-row CSV is never held whole.
+MAX_ROWS = 20_000
+#: Largest magnitude read as a number; beyond it (1e300...) a value is no position, angle or
+#: time a run produces and is read as NaN, like text.
+MAX_MAGNITUDE = 1.0e9
+
+
 def _float_column(rows: list[list[str]], index: int) -> FloatArray:
     values = np.empty(len(rows))
     for k, row in enumerate(rows):
@@ -82,7 +90,40 @@ def _float_column(rows: list[list[str]], index: int) -> FloatArray:
             values[k] = float(row[index])
         except (ValueError, IndexError):
             values[k] = np.nan
+    values[~(np.abs(values) <= MAX_MAGNITUDE)] = np.nan
     return values
+
+
+def _thinned_rows(reader: Iterator[list[str]], width: int, limit: int) -> list[list[str]]:
+    """Complete rows of ``reader`` (``width`` cells), thinned to at most ``limit``, in order.
+
+    Every ``stride``-th row is kept; when ``limit`` is passed, every other kept row is dropped
+    and ``stride`` doubles, so memory stays bounded in one pass. The last row is always kept.
+    """
+    kept: list[list[str]] = []
+    stride, index, last = 1, 0, None
+    for row in reader:
+        if len(row) != width:
+            continue
+        if index % stride == 0:
+            kept.append(row)
+            if len(kept) > limit:
+                kept = kept[::2]
+                stride *= 2
+            last = None
+        else:
+            last = row
+        index += 1
+    if last is not None:
+        kept.append(last)
+    return kept
+
+
+def _finite_time(text: str) -> bool:
+    try:
+        return abs(float(text)) <= MAX_MAGNITUDE
+    except ValueError:
+        return False
 
 
 def _is_time_series(header: Sequence[str]) -> bool:
@@ -98,15 +139,19 @@ def read_run(path: Path, experiment: str, loop_mode: str, controller: str) -> St
     """
     try:
         with path.open(newline="") as handle:
-            table = list(csv.reader(handle))
-    except (OSError, UnicodeDecodeError) as error:
-        raise ConfigError(str(path), f"cannot read the time series: {error}") from error
-    if not table or not _is_time_series(table[0]):
-        raise ConfigError(str(path), "not a run time series (needs columns t, q_*, sigma_min)")
-    header, rows = table[0], table[1:]
-    rows = [row for row in rows if len(row) == len(header)]
+            reader = csv.reader(handle)
+            header = next(reader, [])
+            if not _is_time_series(header):
+                raise ConfigError(
+                    str(path), "not a run time series (needs columns t, q_*, sigma_min)"
+                )
+            rows = _thinned_rows(reader, len(header), MAX_ROWS)
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise ConfigError(str(path), f"cannot read the time series: {error}") from None
+    t_index = header.index("t")
+    rows = [row for row in rows if _finite_time(row[t_index])]
     if not rows:
-        raise ConfigError(str(path), "the time series has no complete row")
+        raise ConfigError(str(path), "the time series has no complete row with a finite time")
     column = {name: i for i, name in enumerate(header)}
     joints = tuple(name[2:] for name in header if name.startswith("q_"))
     axes = "xyz" if "z" in column else "xy"

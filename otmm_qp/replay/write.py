@@ -68,7 +68,10 @@ def write_replays(
             available), or a robot that cannot be identified; scenarios that could be
             written are written first.
     """
+    from otmm_qp.output.folders import claim_folder
+
     root = Path(results_dir)
+    check_run_folder(root)
     runs = select_runs(discover_runs(root), experiment, controller)
     scenarios = group_scenarios(runs)
 
@@ -76,10 +79,46 @@ def write_replays(
         if not quiet:
             print(text, file=log if log is not None else sys.stdout)
 
-    written, errors = _write_scenarios(root, scenarios, controller, max_frames, max_bytes, emit)
+    with claim_folder(ensure_inside(root, root / REPLAY_FOLDER), "replay"):
+        written, errors = _write_scenarios(root, scenarios, controller, max_frames, max_bytes, emit)
     if errors:
         raise ConfigError("", f"{len(errors)} of {len(scenarios)} replays not written: {errors[0]}")
     return written
+
+
+def check_run_folder(root: Path) -> None:
+    """Replays read run folders only (a study stores no per-step CSVs).
+
+    Raises:
+        ConfigError: ``root`` is not a folder, or is a folder of another kind.
+    """
+    from otmm_qp.output.folders import folder_kind
+
+    if not root.is_dir():
+        raise ConfigError("RESULTS_DIR", f"{root} is not a folder")
+    kind = folder_kind(root)
+    if kind not in (None, "run"):
+        raise ConfigError(
+            "RESULTS_DIR", f"{root} is a {kind} folder; otmm-qp replay reads run folders"
+        )
+
+
+def _check_one_arm(group: Sequence[StoredRun]) -> None:
+    """One replay shows one arm: every run of a scenario has its joints and dimension.
+
+    Raises:
+        ConfigError: The scenario mixes planar (2-D) and spatial (3-D) runs, or joint sets.
+    """
+    first = group[0]
+    for run in group[1:]:
+        if run.dimension != first.dimension or run.joint_names != first.joint_names:
+            raise ConfigError(
+                f"{first.experiment}/{first.loop_mode}",
+                f"mixes runs of different arms ({first.path.name}: {first.dimension}-D, "
+                f"{len(first.joint_names)} joints; {run.path.name}: {run.dimension}-D, "
+                f"{len(run.joint_names)} joints); one replay shows one arm: "
+                "choose one with --controller",
+            )
 
 
 def _write_scenarios(
@@ -101,6 +140,7 @@ def _write_scenarios(
         title = f"{key[0]} — {key[1]}" + (f" — {controller}" if controller else "")
         stem = stems[key + suffix]
         try:
+            _check_one_arm(group)
             robot = robots.get(group[0].experiment) or _robot(group)
             robots[group[0].experiment] = robot
             path, note = _write_scenario(

@@ -55,6 +55,10 @@ class PlanarArm(Robot):
             bounds = np.asarray(limits, dtype=float)
             if bounds.shape != (m, 2):
                 raise DimensionError("limits", (m, 2), bounds.shape)
+            if np.any(np.isnan(bounds)):
+                raise ParameterError(
+                    "limits", "must not be NaN; each row is [lower, upper] [rad] (±inf: none)"
+                )
             if np.any(bounds[:, 0] >= bounds[:, 1]):
                 raise ConfigError("limits", "each row must be [lower, upper] with lower < upper")
             self._lower, self._upper = bounds[:, 0].copy(), bounds[:, 1].copy()
@@ -64,7 +68,7 @@ class PlanarArm(Robot):
             speeds = np.asarray(velocity_limits, dtype=float)
             if speeds.shape != (m,):
                 raise DimensionError("velocity_limits", (m,), speeds.shape)
-            if np.any(speeds <= 0.0):
+            if np.any(np.isnan(speeds)) or np.any(speeds <= 0.0):
                 raise ParameterError("velocity_limits", "every limit must be > 0 [rad/s]")
             self._velocity = speeds
         self._names = tuple(f"joint{i + 1}" for i in range(m))

@@ -43,3 +43,40 @@ def handle_stop_signals() -> Iterator[None]:
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+
+
+@contextlib.contextmanager
+def deferred_stop_signals() -> Iterator[None]:
+    """Hold SIGINT/SIGTERM back while the block runs; act on them when it ends.
+
+    For start-up code that must not be interrupted half-way (forking a process pool, starting a
+    Dask cluster): KeyboardInterrupt raised inside ``ProcessPoolExecutor`` start-up or
+    ``LocalCluster.__init__`` leaves threads and processes half made (a traceback, an
+    ``atexit`` AssertionError). Inside the block a signal only records a stop request
+    (:func:`requested`); when the block ends normally, the previous handlers are restored and
+    a recorded request raises KeyboardInterrupt at that safe point. Outside the main thread
+    the block runs unchanged.
+
+    Raises:
+        KeyboardInterrupt: A stop signal arrived during the block.
+    """
+    global _requested
+    arrived: list[int] = []
+
+    def record(signum: int, frame: FrameType | None) -> None:
+        global _requested
+        _requested = True
+        arrived.append(signum)
+
+    try:
+        previous = {s: signal.signal(s, record) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if arrived:
+        raise KeyboardInterrupt

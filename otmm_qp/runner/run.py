@@ -11,7 +11,7 @@ from typing import TextIO
 
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import MetricSettings
-from otmm_qp.output.paths import ensure_inside, safe_name, unique_names
+from otmm_qp.output.results import SUMMARY_CSV, SUMMARY_MD, ResultsDir
 from otmm_qp.output.summary import (
     RunOutcome,
     summary_row,
@@ -66,19 +66,14 @@ def prepare_suite(
 
 
 def run_csv_path(out_dir: Path, result: RunResult, controllers: list[str]) -> Path:
-    """``out_dir/<experiment>/<loop mode>/<controller>.csv`` through the safe, unique names.
-
-    Args:
-        out_dir: Results folder.
-        result: The run.
-        controllers: Controller names of its experiment, in config order (for unique slugs).
+    """Where a run's time series goes (:meth:`ResultsDir.run_csv`).
 
     Raises:
         OutputPathError: The path would leave ``out_dir``.
     """
-    stem = unique_names(controllers)[result.controller]
-    folder = out_dir / safe_name(result.experiment) / safe_name(result.loop_mode)
-    return ensure_inside(out_dir, folder / f"{stem}.csv")
+    return ResultsDir(out_dir).run_csv(
+        result.experiment, result.loop_mode, result.controller, controllers
+    )
 
 
 def run_experiment(
@@ -199,8 +194,9 @@ def write_summaries(outcome: SuiteResult, out_dir: Path) -> None:
         for experiment, skip in outcome.skipped
         for mode in _loop_modes(outcome.suite, experiment)
     ]
-    write_summary_csv(rows, out_dir / "summary.csv")
-    write_summary_markdown(rows, out_dir / "summary.md", outcome.suite.name)
+    results = ResultsDir(out_dir)
+    write_summary_csv(rows, results.file(SUMMARY_CSV))
+    write_summary_markdown(rows, results.file(SUMMARY_MD), outcome.suite.name)
 
 
 def _loop_modes(suite: SuiteConfig, experiment: str) -> list[str]:

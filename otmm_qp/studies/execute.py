@@ -15,8 +15,8 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Generator, Iterator
+from contextlib import closing, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
@@ -146,7 +146,7 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
             :data:`CONNECT_TIMEOUT`.
     """
     import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if scheduler is not None:
         try:
@@ -162,25 +162,54 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
         finally:
             client.close()
         return
-    with dask.config.set(QUIET_WORKERS):  # the Nanny hands it to the workers it spawns
-        cluster = LocalCluster(
-            n_workers=workers or os.cpu_count() or 1,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",  # never the shared default 8787
-            silence_logs=50,
-        )
-    client = Client(cluster)
+    with _local_cluster(workers) as client:
+        yield client
+
+
+#: Preload module of the embedded cluster's workers (they ignore SIGINT; the driver stops them).
+WORKER_PRELOAD = "otmm_qp.studies.worker_signals"
+
+
+@contextmanager
+def _local_cluster(workers: int | None) -> Iterator[Any]:
+    """A client of a fresh ``LocalCluster``, started and closed with stop signals deferred.
+
+    SIGTERM/SIGINT while the cluster starts or closes is acted on once it is fully up or
+    fully closed (a KeyboardInterrupt inside ``LocalCluster`` start-up printed an ``atexit``
+    AssertionError); the workers ignore SIGINT (:data:`WORKER_PRELOAD`), so Ctrl-C in a
+    terminal is one line from the driver, not a traceback per worker.
+    """
+    import dask
+    from distributed import Client, LocalCluster
+
+    from otmm_qp.runner import interrupt
+
+    cluster: Any = None
+    client: Any = None
+    settings = {**QUIET_WORKERS, "distributed.worker.preload": [WORKER_PRELOAD]}
     try:
+        with interrupt.deferred_stop_signals():
+            with dask.config.set(settings):  # the Nanny hands it to the workers it spawns
+                cluster = LocalCluster(
+                    n_workers=workers or os.cpu_count() or 1,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=":0",  # never the shared default 8787
+                    silence_logs=50,
+                )
+            client = Client(cluster)
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with suppress(KeyboardInterrupt), interrupt.deferred_stop_signals():
+            if client is not None:
+                client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def _distributed(
     client: Any, payload: dict[str, Any], chunks: list[list[WorkUnit]]
-) -> Iterator[ChunkResult]:
+) -> Generator[ChunkResult, None, None]:
     from distributed import as_completed
 
     # In a list, so the payload is one object under a fresh key: a scattered *dict* becomes
@@ -197,7 +226,8 @@ def _distributed(
         for future in as_completed(futures):
             yield future.result()
     finally:
-        client.cancel(futures)
+        with suppress(Exception):  # the client may already be closing (Ctrl-C)
+            client.cancel(futures)
 
 
 def run_study(
@@ -323,9 +353,12 @@ def _feed_chunks(
 ) -> None:
     """Run ``chunks`` on ``client``, in this process, or on a new Dask client; ``consume`` them."""
     if client is not None:
-        consume(_distributed(client, payload, chunks))
+        with closing(_distributed(client, payload, chunks)) as results:
+            consume(results)
     elif scheduler is None and workers == 1:
         consume(_serial(payload, chunks))
     elif chunks or scheduler is not None:
         with dask_client(workers, scheduler) as client:
-            consume(_distributed(client, payload, chunks))
+            # closed (its futures cancelled) before the client is, also on Ctrl-C
+            with closing(_distributed(client, payload, chunks)) as results:
+                consume(results)

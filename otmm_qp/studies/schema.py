@@ -30,30 +30,19 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from otmm_qp.config.schema import MetricsConfig, PluginSpec
-from otmm_qp.simulation.episode import DEFAULT_MAX_STEPS
-from otmm_qp.simulation.loop_modes import LoopMode
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
+from otmm_qp.config.loop import LoopSettings
+from otmm_qp.config.schema import ControllerConfig, MetricsConfig
 
 
-class StudyRobot(_Strict):
+class StudyRobot(Strict):
     """A robot of the study: a label, the robot plugin and an optional task weight."""
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
     robot: PluginSpec
-    task_weight: list[float] | None = None
-
-    @field_validator("task_weight")
-    @classmethod
-    def _positive(cls, value: list[float] | None) -> list[float] | None:
-        if value is not None and any(not w > 0.0 for w in value):
-            raise ValueError("every task weight must be > 0")
-        return value
+    task_weight: TaskWeight = None
 
 
 class GeneratorSpec(BaseModel):
@@ -70,23 +59,20 @@ class GeneratorSpec(BaseModel):
         return dict(self.model_extra or {})
 
 
-class StudyController(_Strict):
+class StudyController(ControllerConfig):
     """A controller, or a family of controllers when ``grid`` is given."""
 
-    name: str = Field(min_length=1)
-    filters: list[PluginSpec] = Field(default_factory=list)
-    backend: PluginSpec
     grid: dict[str, list[Any]] = Field(default_factory=dict)
 
 
-class DurationRule(_Strict):
+class DurationRule(Strict):
     """Episode duration: the task's trajectory duration plus ``extra`` [s], capped at ``max``."""
 
     extra: float = Field(0.5, ge=0.0)
     max: float | None = Field(None, gt=0.0)
 
 
-class GracefulCriteria(_Strict):
+class GracefulCriteria(Strict):
     """What success means on a task the reference found unachievable (see ``studies/criteria.py``).
 
     Attributes:
@@ -103,7 +89,7 @@ class GracefulCriteria(_Strict):
     return_to_path: bool = True
 
 
-class SuccessCriteria(_Strict):
+class SuccessCriteria(Strict):
     """An episode succeeds when it completes and every given bound holds.
 
     Attributes:
@@ -127,7 +113,7 @@ class SuccessCriteria(_Strict):
     graceful: GracefulCriteria = GracefulCriteria()
 
 
-class TimeSeriesConfig(_Strict):
+class TimeSeriesConfig(Strict):
     """Sampled time series of the first ``tasks`` tasks per robot and generator.
 
     Every ``stride``-th step is kept.
@@ -137,35 +123,45 @@ class TimeSeriesConfig(_Strict):
     stride: int = Field(5, gt=0)
 
 
-def _default_loop_modes() -> list[LoopMode]:
-    return ["clik"]
+#: Generator parameters that set how much work one task may take (each bounded by
+#: ``limits.max_generator_budget``).
+GENERATOR_BUDGETS = ("attempts", "restarts", "iterations")
 
 
-class StudyConfig(_Strict):
-    """A study file."""
+class PlanLimits(Strict):
+    """Bounds on the size of a study, checked before anything is allocated (raise them here).
+
+    Attributes:
+        max_tasks: Tasks drawn in all: robots × Σ generator ``count``.
+        max_controllers: Controllers after grid expansion (Σ over controllers of the product
+            of the grid axis lengths).
+        max_episodes: Episodes: tasks × controllers × loop modes.
+        max_generator_budget: Largest ``attempts``, ``restarts`` or ``iterations`` of a
+            generator.
+    """
+
+    max_tasks: int = Field(100_000, gt=0)
+    max_controllers: int = Field(1_000, gt=0)
+    max_episodes: int = Field(1_000_000, gt=0)
+    max_generator_budget: int = Field(10_000, gt=0)
+
+
+class StudyConfig(LoopSettings):
+    """A study file: loop settings (``dt`` defaults to 0.01 s), robots, tasks, controllers."""
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
     description: str = ""
     seed: int = Field(0, ge=0)
     dt: float = Field(0.01, gt=0.0)
-    loop_modes: list[LoopMode] = Field(default_factory=_default_loop_modes, min_length=1)
-    clik_gain: float = Field(10.0, ge=0.0)
     duration: DurationRule = DurationRule()
     chunk_size: int = Field(4, gt=0)
-    max_steps: int = Field(DEFAULT_MAX_STEPS, gt=0)
     metrics: MetricsConfig = MetricsConfig()
     success: SuccessCriteria = SuccessCriteria()
     time_series: TimeSeriesConfig = TimeSeriesConfig()
+    limits: PlanLimits = PlanLimits()
     robots: list[StudyRobot] = Field(min_length=1)
     generators: list[GeneratorSpec] = Field(min_length=1)
     controllers: list[StudyController] = Field(min_length=1)
-
-    @field_validator("loop_modes")
-    @classmethod
-    def _unique_modes(cls, value: list[LoopMode]) -> list[LoopMode]:
-        if len(set(value)) != len(value):
-            raise ValueError("loop modes must be unique")
-        return value
 
     @model_validator(mode="after")
     def _unique_robots(self) -> StudyConfig:

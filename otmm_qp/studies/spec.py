@@ -15,57 +15,83 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
-from pydantic import ValidationError
 
 from otmm_qp import registry
-from otmm_qp.config.schema import ControllerConfig, PluginSpec
+from otmm_qp.config.base import PluginSpec
+from otmm_qp.config.load import load, parse
+from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
-from otmm_qp.studies.schema import StudyConfig, StudyController
+from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.tasks.generator import TaskGenerationError, task_seed
 
 
-def _field_path(location: tuple[int | str, ...]) -> str:
-    return ".".join(str(part) for part in location)
-
-
 def parse_study(data: Any, source: str = "study") -> StudyConfig:
-    """Validate parsed YAML data.
+    """Validate parsed YAML data (the one shaper of :func:`otmm_qp.config.load.parse`).
 
     Raises:
         ConfigError: Naming the first offending field and what is allowed.
     """
-    if not isinstance(data, dict):
-        raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
-    try:
-        return StudyConfig.model_validate(data)
-    except ValidationError as error:
-        first = error.errors()[0]
-        path = _field_path(tuple(first["loc"]))
-        message = first["msg"]
-        if first["type"] == "extra_forbidden":
-            message = "unknown key"
-        elif first["type"] == "literal_error":
-            message = f"{message}, got {first.get('input')!r}"
-        raise ConfigError(f"{source}: {path}" if path else source, message) from None
+    return parse(StudyConfig, data, source)
 
 
 def load_study(path: str | Path) -> StudyConfig:
-    """Read and validate a YAML study file.
+    """Read a YAML study file with the hardened reader and validate it.
 
     Raises:
-        ConfigError: Missing file, malformed YAML or invalid content (one line).
+        ConfigError: Missing file, malformed or refused YAML (size, depth, aliases, duplicate
+            keys, non-UTF-8) or invalid content (one line).
     """
-    file = Path(path)
-    if not file.is_file():
-        raise ConfigError(str(file), "no such study file")
-    try:
-        data = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise ConfigError(str(file), f"malformed YAML{where}") from None
-    return parse_study(data, str(file))
+    return load(StudyConfig, path, "study")
+
+
+def _grid_size(spec: StudyController) -> int:
+    """Controllers one study controller expands to: the product of its grid axis lengths."""
+    size = 1
+    for values in spec.grid.values():
+        size *= len(values)
+    return size
+
+
+def check_plan_size(config: StudyConfig, source: str = "study") -> None:
+    """Refuse a study larger than its stated ``limits`` before anything is allocated.
+
+    Raises:
+        ConfigError: Naming the bound, the study's size and how to raise the bound.
+    """
+    limits = config.limits
+    hint = "raise limits.{} in the study file to run it"
+    tasks = len(config.robots) * sum(g.count for g in config.generators)
+    if tasks > limits.max_tasks:
+        raise ConfigError(
+            f"{source}: generators",
+            f"{len(config.robots)} robots × {sum(g.count for g in config.generators):.3g} "
+            f"tasks = {tasks:.3g} tasks exceeds limits.max_tasks = {limits.max_tasks}; "
+            + hint.format("max_tasks"),
+        )
+    controllers = sum(_grid_size(c) for c in config.controllers)
+    if controllers > limits.max_controllers:
+        raise ConfigError(
+            f"{source}: controllers",
+            f"the grids expand to {controllers:.3g} controllers, more than "
+            f"limits.max_controllers = {limits.max_controllers}; " + hint.format("max_controllers"),
+        )
+    episodes = tasks * controllers * len(config.loop_modes)
+    if episodes > limits.max_episodes:
+        raise ConfigError(
+            f"{source}: controllers",
+            f"{tasks} tasks × {controllers} controllers × {len(config.loop_modes)} loop modes = "
+            f"{episodes:.3g} episodes exceeds limits.max_episodes = {limits.max_episodes}; "
+            + hint.format("max_episodes"),
+        )
+    for j, gen in enumerate(config.generators):
+        for name in GENERATOR_BUDGETS:
+            value = gen.params.get(name)
+            if isinstance(value, int | float) and value > limits.max_generator_budget:
+                raise ConfigError(
+                    f"{source}: generators.{j}.{name}",
+                    f"{value:.3g} exceeds limits.max_generator_budget = "
+                    f"{limits.max_generator_budget}; " + hint.format("max_generator_budget"),
+                )
 
 
 def _format_value(value: Any) -> str:
@@ -319,6 +345,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     Raises:
         ConfigError: Any bad input, one line naming the field.
     """
+    check_plan_size(config, source)
     controllers = expand_controllers(config, source)
     skipped = check_plugins(config, controllers, source)
     skipped_names = {name for name, _ in skipped}

@@ -258,6 +258,47 @@ def check(record: RunRecord, scenario: Scenario) -> list[Verdict]:
     return verdicts
 
 
+#: Largest ``--otmm-params``/``--otmm-filters`` value [characters] and deepest nesting.
+MAX_OPTION_CHARS = 65_536
+MAX_OPTION_DEPTH = 40
+
+
+def _depth(value: Any, limit: int) -> int:
+    """Nesting depth of JSON ``value`` (stops counting past ``limit``)."""
+    depth, level = 0, [value]
+    while level and depth <= limit:
+        depth += 1
+        level = [
+            child
+            for item in level
+            if isinstance(item, dict | list)
+            for child in (item.values() if isinstance(item, dict) else item)
+        ]
+    return depth
+
+
+def _json_option(option: str, text: str | None, default: Any) -> Any:
+    """Parse one JSON command-line value, bounded in size and nesting.
+
+    Raises:
+        ConfigError: Longer than :data:`MAX_OPTION_CHARS`, malformed, or nested deeper than
+            :data:`MAX_OPTION_DEPTH` levels.
+    """
+    if not text:
+        return default
+    if len(text) > MAX_OPTION_CHARS:
+        raise ConfigError(option, f"is longer than {MAX_OPTION_CHARS} characters")
+    try:
+        value = json.loads(text)
+    except RecursionError:
+        raise ConfigError(option, f"nesting deeper than {MAX_OPTION_DEPTH} levels") from None
+    except json.JSONDecodeError as error:
+        raise ConfigError(option, f"invalid JSON: {error}") from None
+    if _depth(value, MAX_OPTION_DEPTH) > MAX_OPTION_DEPTH:
+        raise ConfigError(option, f"nesting deeper than {MAX_OPTION_DEPTH} levels")
+    return value
+
+
 def parse_controller(
     name: str, params: str | None = None, filters: str | None = None
 ) -> ControllerSpec:
@@ -271,11 +312,8 @@ def parse_controller(
     Raises:
         ConfigError: Malformed JSON or a wrong type.
     """
-    try:
-        parsed_params = json.loads(params) if params else {}
-        parsed_filters = json.loads(filters) if filters else []
-    except json.JSONDecodeError as error:
-        raise ConfigError("--otmm-params/--otmm-filters", f"invalid JSON: {error}") from error
+    parsed_params = _json_option("--otmm-params", params, {})
+    parsed_filters = _json_option("--otmm-filters", filters, [])
     if not isinstance(parsed_params, dict):
         raise ConfigError("--otmm-params", "must be a JSON object")
     if not (isinstance(parsed_filters, list) and all(isinstance(f, dict) for f in parsed_filters)):

@@ -87,6 +87,11 @@ def _scenarios(config: pytest.Config) -> list[conformance.Scenario]:
     if not wanted:
         return found
     names = [n.strip() for n in wanted.split(",") if n.strip()]
+    if not names:  # ',' or ' ': nothing would run, and an empty session must not pass
+        raise pytest.UsageError(
+            f"--otmm-scenarios: {wanted!r:.40} selects no scenario; "
+            f"give comma-separated names from: {', '.join(s.name for s in found)}"
+        )
     unknown = sorted(set(names) - {s.name for s in found})
     if unknown:
         raise pytest.UsageError(

@@ -4,16 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from otmm_qp.backends.backend import (
-    STATUS_BOUNDED,
-    STATUS_OK,
-    Backend,
-    BackendOutput,
-    truncated_pseudoinverse_apply,
-)
+from otmm_qp.backends.backend import Backend, BackendOutput, truncated_pseudoinverse_apply
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
 
 
 class ClippedPseudoInverseBackend(Backend):
@@ -59,6 +54,6 @@ class ClippedPseudoInverseBackend(Backend):
         speed = np.abs(qdot)
         over = speed > self._bound
         if not np.any(over):
-            return BackendOutput(qdot, STATUS_OK)
+            return BackendOutput(qdot, Status.OK)
         alpha = float(np.min(self._bound[over] / speed[over]))
-        return BackendOutput(alpha * qdot, STATUS_BOUNDED, scale=alpha)
+        return BackendOutput(alpha * qdot, Status.BOUNDED, scale=alpha)

@@ -1,0 +1,59 @@
+r"""The joint-acceleration limit around the previous velocity: ``|q̇ − q̇_prev| ≤ a_max·dt``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.limits.limit import Box, Limit, per_joint
+from otmm_qp.robots.robot import FloatArray, Robot
+
+__all__ = ["AccelerationLimit"]
+
+
+class AccelerationLimit(Limit):
+    r"""The joint velocity may change by at most ``a_max·dt`` per step.
+
+    .. math:: \dot q_{prev} - a_{max}\,dt \le \dot q \le \dot q_{prev} + a_{max}\,dt
+
+    Priority 2: the first limit a non-raising policy gives up (a joint beyond its position
+    limit then returns at the speed limit rather than at ``a_max``).
+
+    Args:
+        a_max: ``a_max`` [rad/s²], > 0 (inf: that joint unlimited), a scalar or one per joint.
+
+    Raises:
+        ParameterError: Some ``a_max`` is not > 0 (or NaN).
+    """
+
+    name: ClassVar[str] = "acceleration"
+    priority: ClassVar[int] = 2
+
+    def __init__(self, a_max: float | Sequence[float]) -> None:
+        try:
+            acc = np.asarray(a_max, dtype=float)
+        except (TypeError, ValueError) as error:
+            message = f"must be numbers > 0 [rad/s²], got {a_max!r:.40}"
+            raise ParameterError("a_max", message) from error
+        if acc.ndim > 1 or acc.size == 0 or not np.all(acc > 0.0):
+            raise ParameterError("a_max", f"must be > 0 [rad/s²], got {acc.tolist()!r:.40}")
+        self.a_max = a_max
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """``a_max·dt`` [rad/s], shape ``(nv,)``.
+
+        Raises:
+            DimensionError: ``a_max`` is neither a scalar nor of shape ``(nv,)``.
+        """
+        super().bind(robot, dt)
+        acceleration = np.asarray(per_joint(self.a_max, "a_max", robot.nv), dtype=float)
+        self.step: FloatArray = acceleration * dt
+
+    def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:
+        """``(q̇_prev − a_max·dt, q̇_prev + a_max·dt)`` [rad/s] into ``out``."""
+        np.subtract(qdot_prev, self.step, out=out.lower)
+        np.add(qdot_prev, self.step, out=out.upper)
+        return out

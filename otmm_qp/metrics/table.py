@@ -1,0 +1,93 @@
+"""The one table of metrics: name, label, unit, number format and direction.
+
+Every reader indexes it — the ``summary.csv``/``summary.md`` columns, the run report's table
+and ranking, the Pareto index and the study rows — so a new metric is one :class:`Metric` row
+here plus its value in :func:`~otmm_qp.metrics.metrics.compute_metrics` (and its test).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from otmm_qp.exceptions import ConfigError
+from otmm_qp.status import Status
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric of a run.
+
+    Attributes:
+        name: Column name in ``summary.csv`` and the study's episode rows.
+        label: Short human label (tables, figures).
+        unit: Unit without brackets (``m``, ``rad/s``, ``µs/step``), or ``""``.
+        fmt: ``format`` spec of a value in tables (``""``: ``str``).
+        lower_is_better: True for costs (errors, speeds, counts of bad steps), False for
+            qualities, None for descriptive values (times, step counts).
+    """
+
+    name: str
+    label: str
+    unit: str = ""
+    fmt: str = ".3g"
+    lower_is_better: bool | None = True
+
+    @property
+    def heading(self) -> str:
+        """``label [unit]``, or the label alone when there is no unit."""
+        return f"{self.label} [{self.unit}]" if self.unit else self.label
+
+
+#: Every metric :func:`~otmm_qp.metrics.metrics.compute_metrics` returns, in column order.
+METRICS: tuple[Metric, ...] = (
+    Metric("max_error", "max err", "m", ".2e"),
+    Metric("rms_error", "rms err", "m", ".2e"),
+    Metric("max_error_window", "max err window", "m", ".2e"),
+    Metric("rms_error_window", "rms err window", "m", ".2e"),
+    Metric("final_error", "final err", "m", ".2e"),
+    Metric("max_orientation_error", "max orientation err", "rad", ".2e"),
+    Metric("rms_orientation_error", "rms orientation err", "rad", ".2e"),
+    Metric("max_joint_speed", "max ‖q̇‖∞", "rad/s"),
+    Metric("initial_jump", "initial jump", "rad/s"),
+    Metric("chattering", "chattering Σ‖Δq̇‖₁", "rad/s"),
+    Metric("max_jump", "max ‖Δq̇‖∞", "rad/s"),
+    Metric("accel_sign_changes", "accel. sign changes", "", "d"),
+    Metric("min_sigma", "min σ", "", ".2e", lower_is_better=False),
+    Metric("t_min_sigma", "t at min σ", "s", lower_is_better=None),
+    Metric("steps_below_sigma_s", "steps σ<σS", "", "d", lower_is_better=None),
+    Metric("max_weak_speed", "max |v_minᵀq̇|", "rad/s"),
+    Metric("blow_up", "blow-up", "", ""),
+    Metric("position_violations", "limit viol.", "steps", ".0f"),
+    Metric("max_position_excess", "max position excess", "rad"),
+    Metric("velocity_violations", "speed-limit viol.", "steps", ".0f"),
+    Metric("max_velocity_excess", "max speed excess", "rad/s"),
+    *(
+        Metric(f"status_{s.value}", f"steps {s.value}", "", "d", lower_is_better=None)
+        for s in Status
+    ),
+    Metric("step_time_median_us", "median", "µs/step", ".1f"),
+    Metric("step_time_p99_us", "p99", "µs/step", ".1f"),
+    Metric("steps", "steps", "", "d", lower_is_better=None),
+    Metric("completed", "completed", "", "", lower_is_better=False),
+)
+
+_BY_NAME = {m.name: m for m in METRICS}
+
+
+def metric(name: str) -> Metric:
+    """The row of ``name``.
+
+    Raises:
+        ConfigError: Not a metric (the message lists them).
+    """
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise ConfigError(
+            "metric", f"unknown metric {name!r:.60}; known: {', '.join(_BY_NAME)}"
+        ) from None
+
+
+def columns(*names: str) -> tuple[tuple[str, str, str], ...]:
+    """``(name, heading, fmt)`` of each named metric, for table writers."""
+    return tuple((m.name, m.heading, m.fmt) for m in map(metric, names))

@@ -795,9 +795,9 @@ def _sigma_figure(out: Path, rows: Rows, robot: str) -> str | None:
 def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
     """Write ``robot``'s median accuracy vs median peak joint speed, with CIs; its path.
 
-    Accuracy is the oracle-relative max error (the reference is the point at 0), or the max
-    error when no reference is stored. The y axis is symmetric-log: a controller can beat a
-    heuristic reference on some tasks, so the relative error can be negative.
+    Accuracy is the oracle-relative max error (the reference is the point at 0; symmetric-log
+    axis, since a controller can beat a heuristic reference on some tasks and the relative
+    error can be negative), or the max error (log axis) when no reference is stored.
     """
     import matplotlib.pyplot as plt
 
@@ -830,8 +830,11 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
             label=name,
         )
     ax.set_xscale("log")
-    finite = [abs(v.value) for v in errors.values() if math.isfinite(v.value) and v.value != 0]
-    ax.set_yscale("symlog", linthresh=max(1e-6, min(finite) / 2.0) if finite else 1e-4)
+    if metric == RELATIVE_ERROR:
+        finite = [abs(v.value) for v in errors.values() if math.isfinite(v.value) and v.value]
+        ax.set_yscale("symlog", linthresh=max(1e-6, min(finite) / 2.0) if finite else 1e-4)
+    else:
+        ax.set_yscale("log")
     ax.set_xlabel("median peak joint speed [rad/s]")
     label = "oracle-relative max error" if metric == RELATIVE_ERROR else "max error"
     ax.set_ylabel(f"median {label} [m]")

@@ -1,4 +1,4 @@
-"""Per-step cost of the issue-11 strategies on Panda (pure timing, no assertions).
+"""Per-step cost of the issue-11 and issue-20 strategies on Panda (pure timing, no assertions).
 
 Replays Panda states of the panda_reach pose scenario (6-D pose line past the reach, recorded
 with OTMM + DLS and CLIK, σ_min down to ~1e-5) through each pipeline, interleaved round by
@@ -27,10 +27,16 @@ from otmm_qp.simulation.loop_modes import commanded_velocity  # noqa: E402
 from otmm_qp.state import KinematicState  # noqa: E402
 from otmm_qp.trajectories.pose import PoseLineTrajectory  # noqa: E402
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend  # noqa: E402
+from otmm_qp_controllers.dls_error import ErrorDampedLeastSquaresBackend  # noqa: E402
 from otmm_qp_controllers.jparse import JParseBackend  # noqa: E402
 from otmm_qp_controllers.manipulability import ManipulabilityBackend  # noqa: E402
 from otmm_qp_controllers.pinv import PseudoInverseBackend  # noqa: E402
+from otmm_qp_controllers.qp import QpBackend  # noqa: E402
+from otmm_qp_controllers.qp_manipulability import ManipulabilityQpBackend  # noqa: E402
+from otmm_qp_controllers.sigma_lm import SigmaLevenbergMarquardtBackend  # noqa: E402
 from otmm_qp_controllers.sns import SnsBackend  # noqa: E402
+from otmm_qp_controllers.task_priority import TaskPriorityBackend  # noqa: E402
+from otmm_qp_controllers.wln import WeightedLeastNormBackend  # noqa: E402
 
 REFERENCE = "otmm+pinv"
 DT = 0.01  # [s]
@@ -70,6 +76,27 @@ def pipelines() -> dict[str, Controller]:
         "jparse": Controller("j", [], JParseBackend()),
         "sns": Controller("s", [], SnsBackend()),
         "manipulability": Controller("m", [], ManipulabilityBackend(damping=0.05)),
+        # issue 20
+        "dls_error": Controller("e", [], ErrorDampedLeastSquaresBackend()),
+        "task_priority": Controller("t", [], TaskPriorityBackend()),
+        "wln": Controller("w", [], WeightedLeastNormBackend(damping=0.05)),
+        "jparse-authors": Controller(
+            "ja",
+            [],
+            JParseBackend(
+                position_gain=1.0,
+                orientation_gain=1.0,
+                secondary={"type": "posture", "gain": 3.0, "max_speed": 0.6},
+            ),
+        ),
+        "qp": Controller("q", [], QpBackend()),
+        "qp_manipulability": Controller(
+            "qm", [], ManipulabilityQpBackend(manipulability_weight=1e-4)
+        ),
+        "sigma_lm": Controller("l", [], SigmaLevenbergMarquardtBackend()),
+        "otmm-directional+sigma_lm": Controller(
+            "dl", [DirectionAwareOtmmFilter(0.05)], SigmaLevenbergMarquardtBackend()
+        ),
     }
 
 

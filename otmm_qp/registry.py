@@ -36,7 +36,19 @@ BACKENDS = "otmm_qp.backends"
 TRAJECTORIES = "otmm_qp.trajectories"
 TASK_GENERATORS = "otmm_qp.task_generators"
 LIMITS = "otmm_qp.limits"
-GROUPS = (ROBOTS, FILTERS, P_FUNCTIONS, BACKENDS, TRAJECTORIES, TASK_GENERATORS, LIMITS)
+PLANTS = "otmm_qp.plants"
+CONDITIONING = "otmm_qp.conditioning"
+GROUPS = (
+    ROBOTS,
+    FILTERS,
+    P_FUNCTIONS,
+    BACKENDS,
+    TRAJECTORIES,
+    TASK_GENERATORS,
+    LIMITS,
+    PLANTS,
+    CONDITIONING,
+)
 
 
 @dataclass(frozen=True)
@@ -85,6 +97,14 @@ def _base_class(group: str) -> type | None:
         from otmm_qp.limits.limit import BaseLimit
 
         return BaseLimit
+    if group == PLANTS:
+        from otmm_qp.plants.plant import Plant
+
+        return Plant
+    if group == CONDITIONING:
+        from otmm_qp.conditioning.stage import CommandStage
+
+        return CommandStage
     return None
 
 

@@ -130,6 +130,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_qp_session.py",
         "bench_strategies.py",
         "bench_study.py",
+        "bench_plant.py",  # test_plant_runs.py
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

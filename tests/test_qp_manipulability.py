@@ -74,6 +74,7 @@ def test_limits_hold_and_the_manipulability_rate_grows_with_the_weight(
 
 def test_in_a_run_it_keeps_the_arm_more_manipulable_on_average() -> None:
     from otmm_qp.controller import Controller
+    from otmm_qp.simulation.episode import Episode, Loop
     from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
@@ -83,7 +84,9 @@ def test_in_a_run_it_keeps_the_arm_more_manipulable_on_average() -> None:
     mean = {}
     for k in (0.0, 1e-3, 1e-2):
         backend = ManipulabilityQpBackend(manipulability_weight=k)
-        result = simulate(robot, Controller("m", [], backend), line, q0, 0.01, 2.0, "clik", 10.0)
+        result = simulate(
+            Episode(robot, line, q0, 0.01, 2.0, Loop("clik", 10.0)), Controller("m", [], backend)
+        )
         mean[k] = np.mean([manipulability(KinematicState.compute(robot, q)) for q in result.q])
         assert not any(s in ("infeasible", "nonfinite") for s in result.status)
         np.testing.assert_allclose(robot.forward(result.q[-1]), [2.6, 0.4], atol=3e-3)

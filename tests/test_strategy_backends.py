@@ -111,10 +111,12 @@ def test_sns_meets_bounds_exactly_and_preserves_the_task_direction(
     assert 0.0 <= out.scale <= 1.0
     realised = state.jacobian @ out.qdot
     if state.sigma_min > 1e-6:  # full rank: J q̇ = s ẋ, the direction is kept
-        # Rounding of the chained pseudoinverses grows with cond(J)·‖J‖‖q̇‖ (1.3e-8 on a
-        # 5-link arm at σ_min = 0.02 with four joints saturated).
-        spread = state.sigma[0] / state.sigma_min * (1.0 + state.sigma[0] * np.abs(out.qdot).sum())
-        np.testing.assert_allclose(realised, out.scale * xdot, atol=1e-10 * spread)
+        # Rounding of the chained pseudoinverses grows with the conditioning of J W (the free
+        # columns), which J's σ_min does not bound: 1.3e-8 on a 5-link arm at σ_min = 0.02 with
+        # four joints saturated, 4.9e-9 on a 4-link one; 1e-7 of ‖ẋ‖ still tells a kept
+        # direction from a changed one (the greedy-scale counter-example differs by 1e-2).
+        tolerance = 1e-7 * (1.0 + float(np.abs(xdot).max()))
+        np.testing.assert_allclose(realised, out.scale * xdot, rtol=0.0, atol=tolerance)
     if np.all(np.abs(np.linalg.pinv(state.jacobian) @ xdot) <= speed) and state.sigma_min > 1e-6:
         assert out.scale == 1.0  # nothing to saturate
 
@@ -177,7 +179,7 @@ def test_sns_greedy_scale_is_strictly_below_the_best_feasible_one() -> None:
 
 
 def test_sns_greedy_gap_over_random_redundant_cases() -> None:
-    """How often and by how much the greedy scale falls short (the numbers in sns.py)."""
+    """How often and by how much the greedy scale falls short (the numbers in sns.py, docs)."""
     ratios = []
     for seed in range(300):
         rng = np.random.default_rng(seed)
@@ -194,8 +196,9 @@ def test_sns_greedy_gap_over_random_redundant_cases() -> None:
         assert scale <= optimum + 1e-9
         ratios.append(scale / optimum if optimum > 0.0 else 1.0)
     ratio = np.array(ratios)
-    assert ratio.min() >= 0.95  # never far below ...
-    assert np.mean(ratio < 1.0 - 1e-6) < 0.05  # ... and rarely below at all
+    assert ratio.size == 300
+    assert ratio.min() >= 0.99  # never far below (measured: 0.991) ...
+    assert 1 <= np.count_nonzero(ratio < 1.0 - 1e-6) <= 5  # ... and rarely below (measured: 2)
 
 
 def test_sns_uses_redundancy_before_scaling() -> None:
@@ -322,3 +325,25 @@ def test_jparse_orientation_gain_needs_a_pose_task() -> None:
         backend.bind(PlanarArm([1.0, 0.8]), 0.01)
     with pytest.raises(ParameterError, match="^position_gain: must be >= 0"):
         JParseBackend(position_gain=-1.0)
+
+
+@settings(max_examples=30)
+@given(st.integers(2, 5), st.integers(0, 2**31 - 1))
+def test_jparse_with_secondary_is_finite_at_exact_singularities(m: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    arm = PlanarArm(list(rng.uniform(0.3, 1.2, m)))
+    backend = JParseBackend(
+        position_gain=2.0, secondary={"type": "posture", "gain": 2.0, "max_speed": 0.6}
+    )
+    backend.bind(arm, 0.01)
+    q = np.r_[rng.uniform(-3.0, 3.0), np.zeros(m - 1)]  # fully stretched: σ_min = 0
+    state = KinematicState.compute(arm, q)
+    xdot = rng.normal(size=2)
+    out = backend.solve(state, xdot, np.zeros(m)).qdot
+    assert np.all(np.isfinite(out))
+    # Bounded: task part ≤ K_max/σ_γ · ‖Gẋ‖ and the projected secondary ≤ its cap.
+    gamma_sigma = 0.1 * state.sigma[0]
+    assert np.linalg.norm(out) <= 2.0 * np.linalg.norm(xdot) / gamma_sigma + 0.6 * np.sqrt(m) + 1e-9
+    # The null-space term adds no task velocity.
+    pure = backend.solve(state, np.zeros(2), np.zeros(m)).qdot
+    np.testing.assert_allclose(state.jacobian @ pure, 0.0, atol=1e-10)

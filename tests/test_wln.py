@@ -117,6 +117,7 @@ def test_a_joint_on_its_limit_does_not_move_and_without_limits_it_is_the_pseudoi
 
 def test_in_a_run_it_keeps_joints_off_their_limits_where_the_pseudoinverse_hits_them() -> None:
     from otmm_qp.controller import Controller
+    from otmm_qp.simulation.episode import Episode, Loop
     from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
     from otmm_qp_controllers.pinv import PseudoInverseBackend
@@ -126,7 +127,9 @@ def test_in_a_run_it_keeps_joints_off_their_limits_where_the_pseudoinverse_hits_
     line = QuinticLineTrajectory(arm.forward(q0), end=[0.0, 0.8], duration=2.0)
     margins = {}
     for name, backend in (("pinv", PseudoInverseBackend()), ("wln", WeightedLeastNormBackend())):
-        result = simulate(arm, Controller(name, [], backend), line, q0, 0.01, 2.5, "clik", 10.0)
+        result = simulate(
+            Episode(arm, line, q0, 0.01, 2.5, Loop("clik", 10.0)), Controller(name, [], backend)
+        )
         lower, upper = np.array(arm.position_limits)
         margins[name] = float(np.min(np.minimum(result.q - lower, upper - result.q)))
         np.testing.assert_allclose(arm.forward(result.q[-1]), [0.0, 0.8], atol=1e-4)
@@ -142,6 +145,7 @@ def test_bad_damping_names_the_field() -> None:
 def test_undamped_wln_diverges_when_the_weighting_makes_the_task_singular() -> None:
     """The paper's WLN has no damping: a target that needs a joint past its limit shows why."""
     from otmm_qp.controller import Controller
+    from otmm_qp.simulation.episode import Episode, Loop
     from otmm_qp.simulation.simulate import simulate
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
@@ -152,7 +156,9 @@ def test_undamped_wln_diverges_when_the_weighting_makes_the_task_singular() -> N
     margin = {}
     for damping in (0.0, 0.05):
         backend = WeightedLeastNormBackend(damping=damping)
-        result = simulate(arm, Controller("w", [], backend), line, q0, 0.01, 2.5, "clik", 10.0)
+        result = simulate(
+            Episode(arm, line, q0, 0.01, 2.5, Loop("clik", 10.0)), Controller("w", [], backend)
+        )
         margin[damping] = float(np.min(np.minimum(result.q - lower, upper - result.q)))
         assert np.all(np.isfinite(result.q))
     assert margin[0.0] < -1.0  # undamped: a joint ends far past its limit

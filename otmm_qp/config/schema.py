@@ -15,10 +15,12 @@ A file holds shared defaults and a list of experiments::
         trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
         duration: 10.0             # [s], optional (trajectory duration)
         task_weight: [1.0, 1.0]    # optional diagonal W
+        plant: [{type: lag, tau: 0.02}, {type: delay, steps: 1}]   # optional, default ideal
         controllers:
           - name: OTMM-linear
             filters: [{type: otmm, sigma_s: 0.05, p: linear}]
             backend: {type: pinv}
+            conditioning: [{type: speed_scale}]                  # optional, default none
 
 Plugin blocks (``robot``, ``trajectory``, ``filters[*]``, ``backend``) take ``type`` (a
 registered name) plus that plugin's own parameters, checked against its constructor.
@@ -34,6 +36,7 @@ from pydantic import Field, field_validator, model_validator
 from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.output.paths import RESERVED_NAMES, safe_name
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.simulation.loop_modes import LoopMode
 
 __all__ = [
@@ -61,17 +64,27 @@ def check_file_name(kind: str, name: str) -> str:
 class MetricsConfig(Strict):
     """Metric parameters: σ_S for counting, window width [s], blow-up speed [rad/s]."""
 
-    sigma_s: float = Field(0.05, gt=0.0)
+    sigma_s: float = Field(SIGMA_S, gt=0.0)
     window: float = Field(1.0, gt=0.0)
     blow_up_speed: float = Field(100.0, gt=0.0)
 
 
+#: A plant: one stage ``{type: lag, tau: 0.02}`` or a list applied in order (``otmm_qp.plants``).
+PlantConfig = PluginSpec | list[PluginSpec]
+
+
 class ControllerConfig(Strict):
-    """A named controller: filters (applied in order) then one backend."""
+    """A named controller: filters (applied in order) then one backend.
+
+    ``conditioning`` (command stages after the backend, ``otmm_qp.conditioning``) and
+    ``plant`` (overriding the experiment's) are optional loop options of this controller.
+    """
 
     name: str = Field(min_length=1)
     filters: list[PluginSpec] = Field(default_factory=list)
     backend: PluginSpec
+    conditioning: list[PluginSpec] = Field(default_factory=list)
+    plant: PlantConfig | None = None
 
 
 class ExperimentConfig(Strict):
@@ -88,6 +101,7 @@ class ExperimentConfig(Strict):
     loop_modes: list[LoopMode] | None = Field(None, min_length=1)
     clik_gain: float | None = Field(None, ge=0.0)
     task_weight: TaskWeight = None
+    plant: PlantConfig | None = None
     #: The trajectory leaves the workspace on purpose (a study's beyond-reach task): the
     #: runner's trajectory check (``check_reachable``) is skipped, as for study episodes.
     out_of_reach: bool = False
@@ -114,6 +128,7 @@ class SuiteConfig(LoopSettings):
     description: str = ""
     metrics: MetricsConfig = MetricsConfig()  # frozen, so a shared default is safe
     claims: Literal["paper"] | None = None
+    plant: PlantConfig | None = None
     experiments: list[ExperimentConfig] = Field(min_length=1)
 
     @model_validator(mode="after")

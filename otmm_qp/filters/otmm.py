@@ -12,12 +12,13 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.filters.task_filter import FilterOutput, FilterReport, TaskFilter
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 
 PFunction = Callable[[float, float], float]
 #: σ_S when a config gives none (the paper's value).
-DEFAULT_SIGMA_S = 0.05
+DEFAULT_SIGMA_S = SIGMA_S
 
 
 class OtmmFilter(TaskFilter):

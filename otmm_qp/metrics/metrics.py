@@ -17,6 +17,19 @@ All speeds in [rad/s], errors in [m] (position) or [rad] (orientation), times in
 * ``position_violations`` / ``max_position_excess``: steps with a joint outside its position
   limits and the largest excess [rad]; the same for velocity limits.
 * ``status_<name>``: count of backend statuses; ``step_time_median_us`` / ``_p99_us``.
+
+What the plant (:mod:`otmm_qp.plants`) and the conditioning stages make meaningful (for the
+ideal plant the gap is 0, the torque ratio NaN and the counts 0):
+
+* ``max_actual_joint_speed``: :math:`\max_{k\ge1}\|\dot q^{act}_k\|_\infty`, the speed the
+  plant realised; ``speed_gap_max`` / ``speed_gap_rms``: max and RMS over the steps of
+  :math:`\|\dot q^{cmd}_k - \dot q^{act}_k\|_\infty` [rad/s].
+* ``peak_torque_ratio``: :math:`\max_{k,i} |\tau_{k,i}|/\tau_{max,i}` (MuJoCo plant; NaN
+  otherwise); ``saturated_steps``: steps in which a joint torque was clipped at its limit.
+* ``conditioned_steps``: steps on which a conditioning stage changed the command.
+* ``filter_switches``: how often the filters' activity flips,
+  :math:`\#\{k \ge 1: a_k \ne a_{k-1}\}` with ``a = filter_active`` (e.g. OTMM switching
+  on and off under sensor noise); ``status_switches``: the same for the backend status.
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.metrics.table import METRICS
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.status import DIVERGENCE_SPEED, Status
 
@@ -42,7 +56,7 @@ class MetricSettings:
         blow_up_speed: Joint speed above which a run counts as blown up [rad/s].
     """
 
-    sigma_s: float = 0.05
+    sigma_s: float = SIGMA_S
     window: float = 1.0
     blow_up_speed: float = DIVERGENCE_SPEED
 
@@ -129,4 +143,33 @@ def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> M
     out["step_time_p99_us"] = float(np.percentile(micro, 99)) if micro.size else float("nan")
     out["steps"] = run.steps
     out["completed"] = run.error_message is None
+    out.update(plant_metrics(run))
+    return out
+
+
+def _switches(values: np.ndarray) -> int:
+    """Number of ``k ≥ 1`` with ``values[k] != values[k-1]``."""
+    return int(np.count_nonzero(values[1:] != values[:-1])) if values.size > 1 else 0
+
+
+def plant_metrics(run: RunResult) -> Metrics:
+    """Speed gap, torques, conditioning and switching counts (see the module docstring)."""
+    out: Metrics = {}
+    actual = run.actual_qdot
+    speed = np.max(np.abs(actual), axis=1) if run.steps else np.zeros(0)
+    out["max_actual_joint_speed"] = _safe_max(speed[1:])
+    gap = np.max(np.abs(run.qdot - actual), axis=1) if run.steps else np.zeros(0)
+    out["speed_gap_max"] = _safe_max(gap)
+    out["speed_gap_rms"] = _rms(gap)
+    ratio = run.torque_ratio
+    finite = ratio[np.isfinite(ratio)] if ratio is not None else np.zeros(0)
+    out["peak_torque_ratio"] = float(np.max(finite)) if finite.size else float("nan")
+    out["saturated_steps"] = (
+        int(np.count_nonzero(run.saturated)) if run.saturated is not None else 0
+    )
+    out["conditioned_steps"] = (
+        int(np.count_nonzero(run.conditioned)) if run.conditioned is not None else 0
+    )
+    out["filter_switches"] = _switches(np.asarray(run.filter_active, dtype=bool))
+    out["status_switches"] = _switches(np.asarray(run.status, dtype=object))
     return out

@@ -69,6 +69,16 @@ METRICS: tuple[Metric, ...] = (
     Metric("step_time_p99_us", "p99", "µs/step", ".1f"),
     Metric("steps", "steps", "", "d", lower_is_better=None),
     Metric("completed", "completed", "", "", lower_is_better=False),
+    # What the plant (otmm_qp.plants) and the conditioning stages make meaningful; descriptive
+    # (None) so the run report's ranking stays on the controller's own metrics.
+    Metric("max_actual_joint_speed", "max ‖q̇_act‖∞", "rad/s", lower_is_better=None),
+    Metric("speed_gap_max", "max ‖q̇_cmd − q̇_act‖∞", "rad/s", lower_is_better=None),
+    Metric("speed_gap_rms", "rms ‖q̇_cmd − q̇_act‖∞", "rad/s", lower_is_better=None),
+    Metric("peak_torque_ratio", "peak |τ|/τ_max", "", ".2f", lower_is_better=None),
+    Metric("saturated_steps", "torque-saturated", "steps", "d", lower_is_better=None),
+    Metric("conditioned_steps", "conditioned", "steps", "d", lower_is_better=None),
+    Metric("filter_switches", "filter on/off switches", "", "d", lower_is_better=None),
+    Metric("status_switches", "status switches", "", "d", lower_is_better=None),
 )
 
 _BY_NAME = {m.name: m for m in METRICS}

@@ -49,6 +49,7 @@ __all__ = [
     "mujoco_joint_map",
     "mujoco_model",
     "mujoco_site_pose",
+    "mujoco_spec",
     "peer_urdf",
     "pinocchio_frame_pose",
     "pinocchio_model",
@@ -318,6 +319,27 @@ def mujoco_model(
 ) -> tuple[Any, str]:
     """MuJoCo model of the described arm and the name of its end-effector site.
 
+    The compiled :func:`mujoco_spec`.
+
+    Args:
+        source: A robot (asked for its description) or a description.
+        pinocchio: ``(model, frame_id)`` of :func:`pinocchio_model`, when already built.
+
+    Raises:
+        RobotLoadError: MuJoCo rejects the MJCF/URDF, or the MJCF has no site ``frame``.
+    """
+    spec, site = mujoco_spec(source, pinocchio)
+    try:
+        return spec.compile(), site
+    except ValueError as error:
+        raise RobotLoadError(f"MuJoCo cannot compile the peer model: {error}") from error
+
+
+def mujoco_spec(
+    source: Robot | PeerDescription, pinocchio: tuple[Any, int] | None = None
+) -> tuple[Any, str]:
+    """MuJoCo ``MjSpec`` of the described arm (to add to before compiling) and its site name.
+
     The description's ``mjcf`` when given (its site ``frame``); otherwise its URDF through
     :func:`peer_urdf` (absolute mesh paths, ``strippath="false"`` so MuJoCo keeps them,
     ``fusestatic="false"``) with a site :data:`MUJOCO_SITE` on the body of the frame's
@@ -335,12 +357,13 @@ def mujoco_model(
     description = _description(source)
     if description.mjcf is not None:
         try:
-            compiled = mujoco.MjModel.from_xml_string(description.mjcf)
+            spec = mujoco.MjSpec.from_string(description.mjcf)
+            compiled = spec.compile()
         except ValueError as error:
             raise RobotLoadError(f"mjcf: MuJoCo cannot load the peer MJCF: {error}") from error
         if mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_SITE, description.frame) < 0:
             raise RobotLoadError(f"mjcf: no site named {description.frame!r}")
-        return compiled, description.frame
+        return spec, description.frame
     model, frame_id = pinocchio if pinocchio is not None else pinocchio_model(description)
     text = peer_urdf(description, mesh_formats=MUJOCO_MESH_FORMATS)
     root = ET.fromstring(text)
@@ -363,7 +386,7 @@ def mujoco_model(
         pos=np.asarray(frame.placement.translation),
         quat=[quaternion.w, quaternion.x, quaternion.y, quaternion.z],
     )
-    return spec.compile(), MUJOCO_SITE
+    return spec, MUJOCO_SITE
 
 
 def mujoco_joint_map(robot: Robot, model: Any) -> JointMap:

@@ -25,16 +25,17 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.output.escape import escape, fill_template
+from otmm_qp.output.paths import atomic_write_bytes
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.replay.arm_scene import build_arm_scene, geometry_transforms
 from otmm_qp.replay.frames import FramePlan, plan_frames
-from otmm_qp.replay.safe_output import atomic_write_bytes
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import Robot
 
 #: Bytes of per-frame transform data allowed before frames are decimated.
 DEFAULT_MAX_FRAME_BYTES = 3_000_000
 #: σ_S used for the arm colour [-] (the metrics default).
-DEFAULT_SIGMA_S = 0.05
+DEFAULT_SIGMA_S = SIGMA_S
 PATH_COLORS = (
     0x1F77B4,
     0xFF7F0E,
@@ -131,6 +132,7 @@ def write_arm_page(
     }
     frames_blob = _pack([np.ascontiguousarray(np.stack(transforms)).tobytes()])
     page = _fill_template(title, meta, scene.commands, frames_blob)
+    path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, page.encode("utf-8"))
     return PageResult(path, plan, list(scene.warnings))
 

@@ -25,14 +25,15 @@ from typing import Any
 
 import numpy as np
 
+from otmm_qp.output.paths import atomic_write_bytes
+from otmm_qp.paper import SIGMA_S
 from otmm_qp.replay.frames import FramePlan, plan_frames
-from otmm_qp.replay.safe_output import atomic_write_bytes
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import FloatArray, Robot
 
 DEFAULT_MAX_FRAMES = 80
 DEFAULT_MAX_BYTES = 2_500_000
-DEFAULT_SIGMA_S = 0.05
+DEFAULT_SIGMA_S = SIGMA_S
 TIP_COLOR = (255, 0, 255)
 _PANEL_INCHES = 2.4
 #: Angles of the manipulability ellipse's outline [rad].
@@ -272,6 +273,7 @@ def write_planar_animation(
             break
         plan = plan_frames(steps, plan.frames // 2)
         shrunk = True
+    path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, data)
     sidecar = path.with_suffix(".json")
     description = {
@@ -285,5 +287,6 @@ def write_planar_animation(
         "controllers": [r.controller for r in runs],
         "pixel_maps": maps,
     }
+    sidecar.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(sidecar, (json.dumps(description, indent=1) + "\n").encode("utf-8"))
     return AnimationResult(path, sidecar, plan, shrunk)

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.replay.safe_output import atomic_write_bytes
+from otmm_qp.output.paths import atomic_write_bytes
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -40,6 +40,7 @@ def write_robot_record(experiment_dir: Path, robot_type: str, params: dict[str, 
     experiment_dir.mkdir(parents=True, exist_ok=True)
     path = experiment_dir / ROBOT_RECORD
     text = json.dumps({"type": robot_type, "params": params}, indent=1, default=str)
+    path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, (text + "\n").encode("utf-8"))
     return path
 

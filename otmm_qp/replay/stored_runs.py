@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.replay.safe_output import safe_name
+from otmm_qp.output.paths import safe_name
 from otmm_qp.robots.robot import FloatArray
 
 #: Folders under a results directory that never hold run time series.

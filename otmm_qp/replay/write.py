@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.replay.safe_output import atomic_write_bytes, ensure_inside, safe_name
+from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name
 from otmm_qp.replay.stored_runs import StoredRun, discover_runs, group_scenarios, select_runs
 from otmm_qp.robots.robot import Robot
 
@@ -212,6 +212,7 @@ def _write_sidecar(path: Path, title: str, kind: str, frames: int, controllers: 
         },
         indent=1,
     )
+    path.with_suffix(".json").parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
 
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller
 from otmm_qp.metrics.metrics import Metrics, MetricSettings, compute_metrics
+from otmm_qp.plants.chain import PlantChain
 from otmm_qp.simulation.episode import Episode
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.simulation.simulate import simulate
@@ -31,12 +33,20 @@ class RunRecord:
         }
 
 
-def run_episode(episode: Episode, controller: Controller, settings: MetricSettings) -> RunRecord:
+def run_episode(
+    episode: Episode,
+    controller: Controller,
+    settings: MetricSettings,
+    stage: tuple[PlantChain, Conditioning] | None = None,
+) -> RunRecord:
     """Simulate ``controller`` on ``episode`` and compute its metrics.
+
+    ``stage`` is the run's fresh ``(plant, conditioning)`` (None: the ideal plant, none).
 
     A failure inside the run (a plugin exception, a malformed ``q̇``, an infeasible QP under
     the ``raise`` policy) is not raised: the record keeps the steps done and
     ``result.error_message`` says why.
     """
-    result = simulate(episode, controller)
+    plant, conditioning = stage if stage is not None else (None, None)
+    result = simulate(episode, controller, plant=plant, conditioning=conditioning)
     return RunRecord(result, compute_metrics(result, settings))

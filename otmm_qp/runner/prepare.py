@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
+from otmm_qp.conditioning.pipeline import Conditioning, build_conditioning
 from otmm_qp.config.schema import ExperimentConfig, SuiteConfig
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ConfigError, DimensionError
+from otmm_qp.plants.chain import PlantChain, build_plant
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.runner.build import (
     SkippedController,
@@ -26,6 +29,7 @@ from otmm_qp.runner.build import (
     load_robot,
     start_configuration,
 )
+from otmm_qp.runner.plant_stage import experiment_stages
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -41,12 +45,23 @@ class PreparedExperiment:
             trajectory, ``dt`` and duration).
         controllers: Controllers in config order.
         skipped: Controllers whose peer library is missing (reported, never run).
+        plants: Plant config per controller name (``{type, ...}`` or a list; absent: ideal).
+        conditioning: Conditioning stages per controller name (absent: none).
     """
 
     config: ExperimentConfig
     episodes: tuple[Episode, ...]
     controllers: list[Controller]
     skipped: list[SkippedController] = field(default_factory=list)
+    plants: dict[str, Any] = field(default_factory=dict)
+    conditioning: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+
+    def build_stage(self, controller: str) -> tuple[PlantChain, Conditioning]:
+        """A fresh plant and the conditioning of ``controller`` for one run (both stateful)."""
+        return (
+            build_plant(self.plants.get(controller)),
+            build_conditioning(self.conditioning.get(controller)),
+        )
 
     @property
     def robot(self) -> Robot:
@@ -175,4 +190,8 @@ def prepare_experiment(
     controllers, skipped = build_controllers(config, field_path, suite.metrics.blow_up_speed)
     # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
     prepare(episodes[0], controllers, field_path, reachable=not config.out_of_reach)
-    return PreparedExperiment(config, episodes, controllers, skipped)
+    plants, conditioning = experiment_stages(
+        config.plant if config.plant is not None else suite.plant,
+        config.controllers, robot, episodes[0].q0, episodes[0].dt, field_path,
+    )  # fmt: skip
+    return PreparedExperiment(config, episodes, controllers, skipped, plants, conditioning)

@@ -85,7 +85,8 @@ def run_experiment(
     records = []
     for episode in prepared.episodes:
         for controller in prepared.controllers:
-            records.append(run_episode(episode, controller, settings))
+            stage = prepared.build_stage(controller.name)
+            records.append(run_episode(episode, controller, settings, stage))
             if after_run is not None:
                 after_run(records[-1])
     return records

@@ -6,7 +6,10 @@ import math
 
 import numpy as np
 
+from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
+from otmm_qp.plants.chain import PlantChain
+from otmm_qp.plants.plant import PlantStep
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
@@ -43,6 +46,10 @@ class RunRecorder:
         self.weak_speed = np.zeros(steps)
         self.status = np.empty(steps, dtype=object)
         self.step_time = np.zeros(steps)
+        self.qdot_actual = self.qdot  # the same array until a plant step differs (ideal)
+        self.torque_ratio = np.full(steps, np.nan)
+        self.saturated = np.zeros(steps, dtype=bool)
+        self.conditioned = np.zeros(steps, dtype=bool)
         self.position: list[FloatArray] = []
         self.position_desired: list[FloatArray] = []
 
@@ -82,6 +89,17 @@ class RunRecorder:
         self.position_desired.append(task_position(desired).copy())
         self.done = k + 1
 
+    def record_plant(self, k: int, qdot: FloatArray, step: PlantStep, conditioned: bool) -> None:
+        """Log what step ``k`` sent (the conditioned ``qdot`` (nv,)) and what the plant did."""
+        if conditioned:
+            self.qdot[k] = qdot
+            self.conditioned[k] = True
+        if step.qdot is not qdot and self.qdot_actual is self.qdot:
+            self.qdot_actual = self.qdot.copy()
+        self.qdot_actual[k] = step.qdot
+        self.torque_ratio[k] = step.torque_ratio
+        self.saturated[k] = step.saturated
+
     def result(
         self,
         controller: Controller,
@@ -89,9 +107,11 @@ class RunRecorder:
         dt: float,
         experiment: str,
         error_message: str | None,
+        stage: tuple[PlantChain, Conditioning] | None = None,
     ) -> RunResult:
         """The :class:`RunResult` of the steps recorded so far."""
         done, robot = self.done, self.robot
+        plant, conditioning = stage if stage is not None else (PlantChain(), Conditioning())
         d = 3 if robot.task_kind == "pose" else robot.task_dim
         return RunResult(
             experiment=experiment,
@@ -120,4 +140,10 @@ class RunRecorder:
             filters="+".join(f.name for f in controller.filters) or "none",
             backend=controller.backend.name,
             error_message=error_message,
+            qdot_actual=self.qdot_actual[:done],
+            torque_ratio=self.torque_ratio[:done],
+            saturated=self.saturated[:done],
+            conditioned=self.conditioned[:done],
+            plant=plant.label(),
+            conditioning=conditioning.label(),
         )

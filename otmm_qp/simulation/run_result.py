@@ -24,7 +24,8 @@ class RunResult:
         task_kind: ``position`` or ``pose``.
         t: Times [s], shape ``(N,)``.
         q: Joint coordinates at the start of each step [rad], shape ``(N, nv)``.
-        qdot: Joint velocities applied over each step [rad/s], shape ``(N, nv)``.
+        qdot: Joint velocities commanded each step [rad/s], shape ``(N, nv)`` (after any
+            conditioning; what the ideal plant integrates).
         position: End-effector position [m], shape ``(N, d)`` (d = 2 or 3).
         position_desired: Desired position [m], shape ``(N, d)``.
         error: Task error ``e(x_d, x)``, shape ``(N, n)`` (pose: linear [m], angular [rad]).
@@ -40,6 +41,13 @@ class RunResult:
         position_limits: ``(lower, upper)`` joint limits [rad], shapes ``(nv,)``.
         velocity_limits: Joint speed limits [rad/s], shape ``(nv,)``.
         error_message: Set when the run stopped early on an error.
+        qdot_actual: Joint velocity the plant realised each step [rad/s], ``(N, nv)``
+            (:mod:`otmm_qp.plants`; equal to ``qdot`` for the ideal plant).
+        torque_ratio: Largest ``|τ|/τ_max`` per step, ``(N,)`` (NaN without a torque model).
+        saturated: Whether a joint torque was clipped during the step, ``(N,)``.
+        conditioned: Whether a conditioning stage changed the command, ``(N,)``.
+        plant: Label of the plant (``ideal`` by default).
+        conditioning: Label of the conditioning stages (``none`` by default).
     """
 
     experiment: str
@@ -69,6 +77,22 @@ class RunResult:
     backend: str = ""
     error_message: str | None = None
     extra: dict[str, str] = field(default_factory=dict)
+    qdot_actual: FloatArray | None = None
+    torque_ratio: FloatArray | None = None
+    saturated: np.ndarray | None = None
+    conditioned: np.ndarray | None = None
+    plant: str = "ideal"
+    conditioning: str = "none"
+
+    @property
+    def actual_qdot(self) -> FloatArray:
+        """Joint velocity the plant realised [rad/s], ``(N, nv)`` (the command when ideal)."""
+        return self.qdot if self.qdot_actual is None else self.qdot_actual
+
+    @property
+    def plant_columns(self) -> bool:
+        """Whether the CSV carries the plant's columns (a non-ideal plant or conditioning)."""
+        return self.plant != "ideal" or self.conditioning != "none"
 
     @property
     def steps(self) -> int:
@@ -100,6 +124,10 @@ class RunResult:
         header += [f"error_{i}" for i in range(self.error.shape[1])]
         header += ["sigma_min", "p", "filter_active", "removed", "damping", "scale", "weak_speed"]
         header += ["status", "step_time_us"]
+        plant_columns = self.plant_columns
+        if plant_columns:
+            header += [f"qdot_actual_{name}" for name in self.joint_names]
+            header += ["torque_ratio", "saturated", "conditioned"]
         from otmm_qp.output.paths import atomic_open
 
         with atomic_open(path, "w", newline="") as handle:
@@ -123,4 +151,12 @@ class RunResult:
                     self.status[k],
                     f"{self.step_time[k] * 1e6:.2f}",
                 ]
+                if plant_columns:
+                    row += [f"{v:.9g}" for v in self.actual_qdot[k]]
+                    ratio = self.torque_ratio[k] if self.torque_ratio is not None else np.nan
+                    row += [
+                        f"{ratio:.6g}",
+                        int(bool(self.saturated is not None and self.saturated[k])),
+                        int(bool(self.conditioned is not None and self.conditioned[k])),
+                    ]
                 writer.writerow(row)

@@ -15,8 +15,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
 from otmm_qp.exceptions import InfeasibleProblem, OtmmError
+from otmm_qp.plants.chain import PlantChain
+from otmm_qp.plants.ideal import IntegratorPlant
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.simulation.episode import Episode
 from otmm_qp.simulation.integrator import Integrator
@@ -69,6 +72,8 @@ def simulate(
     *,
     on_step: StepObserver | None = None,
     integrator: Integrator | None = None,
+    plant: PlantChain | None = None,
+    conditioning: Conditioning | None = None,
 ) -> RunResult:
     r"""Run ``controller`` on ``episode``.
 
@@ -80,7 +85,14 @@ def simulate(
         episode: What to run (checked when it was made).
         controller: Filters + backend; bound to the episode's robot and ``dt`` here.
         on_step: Observer called after each step (e.g. to keep the states a benchmark replays).
-        integrator: The integration stage (default: explicit Euler, :class:`Integrator`).
+        integrator: The integration stage (default: explicit Euler, :class:`Integrator`);
+            the body of the ideal plant when ``plant`` is None.
+        plant: What happens between the command and the next state (:mod:`otmm_qp.plants`:
+            lag, delay, sensor noise, MuJoCo); None is the ideal plant (``integrator``), bit
+            for bit. The controller sees ``plant.measure(q)``; the results and metrics the
+            true ``q``.
+        conditioning: Command stages applied to the controller's ``q̇`` before the plant
+            (:mod:`otmm_qp.conditioning`); None: none.
 
     Returns:
         The time series. An error inside a step (an infeasible QP with the ``raise`` policy,
@@ -89,21 +101,34 @@ def simulate(
     """
     robot, dt = episode.robot, episode.dt
     controller.bind(robot, dt)
-    stage = integrator if integrator is not None else Integrator()
-    stage.start(robot, dt)
+    if plant is None:
+        plant = PlantChain(
+            [IntegratorPlant(integrator if integrator is not None else Integrator())]
+        )
+    conditioning = conditioning if conditioning is not None else Conditioning()
+    if np.all(np.isfinite(episode.q0)):
+        plant.reset(robot, episode.q0, dt)
+    conditioning.reset(robot, dt)
     recorder = RunRecorder(robot, episode.steps, dt)
-    error_message = _run_steps(episode, controller, recorder, stage, on_step)
-    return recorder.result(controller, episode.loop.mode, dt, episode.name, error_message)
+    error_message = _run_steps(episode, controller, recorder, (plant, conditioning), on_step)
+    return recorder.result(
+        controller, episode.loop.mode, dt, episode.name, error_message, (plant, conditioning)
+    )
 
 
 def _run_steps(
     episode: Episode,
     controller: Controller,
     recorder: RunRecorder,
-    stage: Integrator,
+    stage: tuple[PlantChain, Conditioning],
     on_step: StepObserver | None,
 ) -> str | None:
-    """The control loop from ``episode.q0``, filling ``recorder``; why it stopped, or None."""
+    """The control loop from ``episode.q0``, filling ``recorder``; why it stopped, or None.
+
+    The controller sees ``plant.measure(q)``; the recorder logs the true state; the
+    conditioned command goes through ``plant.advance``, the one place ``q`` is updated.
+    """
+    plant, conditioning = stage
     robot, trajectory, dt, weight = (
         episode.robot,
         episode.trajectory,
@@ -120,22 +145,30 @@ def _run_steps(
         try:
             desired, desired_velocity = trajectory.sample(tk)
             tic = time.perf_counter()
-            state = KinematicState.compute(robot, q, weight)
+            state = KinematicState.compute(robot, plant.measure(q), weight)
             tracking_error = robot.task_error(desired, state.x)
             command = command_of(
                 robot, trajectory, tk, dt, state.x, tracking_error, desired_velocity
             )
             output = controller.step(state, command, qdot_prev)
-            qdot = _checked_qdot(output, nv)
+            qdot = conditioning.apply(state.q, _checked_qdot(output, nv))
             seconds = time.perf_counter() - tic
-            recorder.record(k, state, command, tracking_error, desired, output, seconds)
+            true_state = state
+            if not plant.exact_measurement:  # metrics on the true state, never the measured one
+                true_state = KinematicState.compute(robot, q, weight)
+                tracking_error = robot.task_error(desired, true_state.x)
+            recorder.record(k, true_state, command, tracking_error, desired, output, seconds)
         except (Exception, SystemExit) as error:  # plugins are untrusted code
             return failure_message(k, error)
         if on_step is not None:
             on_step(k, state, command, qdot_prev, output)
         try:
-            q = stage.advance(q, qdot)
+            step = plant.advance(q, qdot)
         except (Exception, SystemExit) as error:  # a robot plugin's integrate
             return failure_message(k + 1, error)
+        recorder.record_plant(k, qdot, step, conditioning.active)
+        if not step.stable:
+            return f"step {k}: plant {plant.label()} unstable: {step.detail}"
+        q = step.q
         qdot_prev = qdot
     return None

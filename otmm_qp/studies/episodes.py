@@ -23,6 +23,7 @@ from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.drilldown import episode_id
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
+from otmm_qp.studies.spec import plant_name
 from otmm_qp.tasks.generator import Task, TaskGenerator
 
 #: Metrics that measure wall-clock time: they differ between runs and executors.
@@ -135,6 +136,7 @@ def _base_row(
         "controller_params": json.dumps(params, sort_keys=True, default=str),
         "loop_mode": mode,
         "dt": config.dt,
+        **({"plant": plant_name(spec)} if config.plants is not None else {}),
     }
 
 
@@ -203,6 +205,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     """Generate the unit's task and run its episodes, appending rows (never raising)."""
     from otmm_qp.runner.build import build_controller
     from otmm_qp.runner.episode import run_episode
+    from otmm_qp.runner.plant_stage import build_stage
 
     config, controllers = _study(payload)
     settings = MetricSettings(**config.metrics.model_dump())
@@ -220,7 +223,9 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
-            record = run_episode(study_episode(config, robot, task, weight, mode), built, settings)
+            stage = build_stage(controllers[controller])
+            episode = study_episode(config, robot, task, weight, mode)
+            record = run_episode(episode, built, settings, stage)
         except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
             row.update(status="error", error_message=one_line(error), success=False)
             result.rows.append(row)

@@ -852,9 +852,10 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
     """The self-contained HTML page: the Markdown rendered, figures embedded as base64.
 
     Every name (controllers, robots, generators) reaches the page through
-    :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.report.markdown_to_html`).
+    :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.markdown.markdown_to_html`).
     """
-    from otmm_qp.output.report import _CSS, markdown_to_html
+    from otmm_qp.output.markdown import markdown_to_html
+    from otmm_qp.output.report import _CSS
 
     parts: list[str] = []
     chunk: list[str] = []

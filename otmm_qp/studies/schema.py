@@ -22,6 +22,13 @@ A study runs every controller on every task drawn by its generators, per robot::
         backend: {type: pinv}
         grid: {sigma_s: [0.01, 0.05], p: [linear, cbrt]}   # 4 controllers
 
+``plants`` (optional) is one more grid axis: every controller runs under each plant on the
+same tasks, named ``controller@plant``::
+
+    plants:
+      - {name: ideal, plant: {type: ideal}}
+      - {name: lag20-delay1, plant: [{type: lag, tau: 0.02}, {type: delay, steps: 1}]}
+
 ``grid`` keys are a parameter name (set in the one block of the controller that accepts
 it) or an explicit ``backend.NAME`` / ``filters.INDEX.NAME``.
 """
@@ -30,11 +37,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
-from otmm_qp.config.schema import ControllerConfig, MetricsConfig
+from otmm_qp.config.schema import ControllerConfig, MetricsConfig, PlantConfig
 
 
 class StudyRobot(Strict):
@@ -63,6 +70,13 @@ class StudyController(ControllerConfig):
     """A controller, or a family of controllers when ``grid`` is given."""
 
     grid: dict[str, list[Any]] = Field(default_factory=dict)
+
+
+class StudyPlant(Strict):
+    """One value of the ``plants`` axis: a label and a plant (a stage or a list of stages)."""
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
+    plant: PlantConfig
 
 
 class DurationRule(Strict):
@@ -162,6 +176,16 @@ class StudyConfig(LoopSettings):
     robots: list[StudyRobot] = Field(min_length=1)
     generators: list[GeneratorSpec] = Field(min_length=1)
     controllers: list[StudyController] = Field(min_length=1)
+    plants: list[StudyPlant] | None = Field(None, min_length=1)
+
+    @field_validator("plants")
+    @classmethod
+    def _unique_plants(cls, value: list[StudyPlant] | None) -> list[StudyPlant] | None:
+        names = [p.name for p in value or []]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"plant names must be unique; repeated: {', '.join(duplicates)}")
+        return value
 
     @model_validator(mode="after")
     def _unique_robots(self) -> StudyConfig:

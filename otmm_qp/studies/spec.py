@@ -138,6 +138,8 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
     Raises:
         ConfigError: Empty grid axis, grid key no block accepts, or duplicate names.
     """
+    from otmm_qp.runner.plant_stage import plant_record
+
     expanded: list[ControllerConfig] = []
     for i, spec in enumerate(config.controllers):
         field = f"{source}: controllers.{i}"
@@ -163,11 +165,16 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
                     )
                     + "]"
                 )
-            expanded.append(
-                ControllerConfig.model_validate(
-                    {"name": label, "filters": filters, "backend": backend}
-                )
-            )
+            conditioning = [dict(c.params, type=c.type) for c in spec.conditioning]
+            for plant_name, plant in _plant_axis(config):
+                record: dict[str, Any] = {"name": label, "filters": filters, "backend": backend}
+                if conditioning:
+                    record["conditioning"] = conditioning
+                if plant_name is not None:  # the plants axis overrides a controller's own plant
+                    record.update(name=f"{label}@{plant_name}", plant=plant)
+                elif spec.plant is not None:
+                    record["plant"] = plant_record(spec.plant)
+                expanded.append(ControllerConfig.model_validate(record))
     names = [c.name for c in expanded]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
@@ -177,13 +184,40 @@ def expand_controllers(config: StudyConfig, source: str = "study") -> list[Contr
     return expanded
 
 
+def _plant_axis(config: StudyConfig) -> list[tuple[str | None, Any]]:
+    """``(name, plant record)`` of each value of the ``plants`` axis; ``[(None, None)]`` if none."""
+    from otmm_qp.runner.plant_stage import plant_record
+
+    if config.plants is None:
+        return [(None, None)]
+    return [(p.name, plant_record(p.plant)) for p in config.plants]
+
+
+def plant_name(config: ControllerConfig) -> str:
+    """The ``plants`` label of an expanded controller (``ideal`` without a plants axis)."""
+    if config.plant is None:
+        return "ideal"
+    return config.name.rsplit("@", 1)[1] if "@" in config.name else "controller's own"
+
+
 def controller_record(config: ControllerConfig) -> dict[str, Any]:
-    """JSON-ready record of a controller (name, filters, backend with parameters)."""
-    return {
+    """JSON-ready record of a controller (name, filters, backend with parameters).
+
+    ``conditioning`` and ``plant`` appear only when set, so the episode keys of a study
+    without them are those it had before plants existed.
+    """
+    from otmm_qp.runner.plant_stage import plant_record
+
+    record: dict[str, Any] = {
         "name": config.name,
         "filters": [dict(f.params, type=f.type) for f in config.filters],
         "backend": dict(config.backend.params, type=config.backend.type),
     }
+    if config.conditioning:
+        record["conditioning"] = [dict(s.params, type=s.type) for s in config.conditioning]
+    if config.plant is not None:
+        record["plant"] = plant_record(config.plant)
+    return record
 
 
 @dataclass(frozen=True)
@@ -318,7 +352,28 @@ def check_plugins(
         except OtmmError as error:
             raise ConfigError(field, str(error)) from None
         prepare(episode, built, f"{source}: robots.{i}", reachable=False)
+        _check_stages(config, controllers, robot, episode.q0, source)
     return skipped
+
+
+def _check_stages(
+    config: StudyConfig, controllers: list[ControllerConfig], robot: Any, q0: Any, source: str
+) -> None:
+    """Build and reset every plant of the axis and every conditioning on ``robot`` at ``q0``.
+
+    Raises:
+        ConfigError: Naming ``plants.I.plant`` or the controller's ``conditioning``.
+    """
+    from otmm_qp.runner.plant_stage import check_conditioning, check_plant, plant_record
+
+    for j, plant in enumerate(config.plants or []):
+        check_plant(plant_record(plant.plant), robot, q0, config.dt, f"{source}: plants.{j}.plant")
+    conditioning = {
+        c.name: [dict(s.params, type=s.type) for s in c.conditioning]
+        for c in controllers
+        if c.conditioning
+    }
+    check_conditioning(conditioning, robot, config.dt, source)
 
 
 def _first_task(

@@ -1,0 +1,132 @@
+r"""Which strategies keep their ranking under a realistic plant: the headline of a plants study.
+
+From the episode rows of a study with a ``plants`` axis (controllers named
+``controller@plant``), per plant and base controller:
+
+* success rate [%] and the rank by success rate (ties broken by the median max error);
+* median max position error [m], median peak commanded joint speed [rad/s], median
+  ``filter_switches`` (mean) and, for the MuJoCo plant, the median ``peak_torque_ratio`` and the
+  share of episodes with a saturated torque;
+* against the ideal plant on the same tasks: the paired Wilcoxon signed-rank test of the max
+  error (Holm-corrected over every controller × plant pair) and the Spearman correlation
+  :math:`\rho` of the plant's ranking with the ideal ranking.
+
+Run as ``python -m otmm_qp.plants.headline RESULTS_DIR`` (prints Markdown).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from otmm_qp.studies.statistics import holm, paired_test
+from otmm_qp.studies.storage import read_episodes
+
+__all__ = ["headline", "main"]
+
+COLUMNS = [
+    "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
+    "max_joint_speed", "filter_switches", "peak_torque_ratio", "saturated_steps",
+]  # fmt: skip
+
+
+def _median(values: list[float]) -> float:
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    return float(np.median(finite)) if finite else math.nan
+
+
+def _ranks(rate: dict[str, float], error: dict[str, float]) -> dict[str, int]:
+    order = sorted(rate, key=lambda c: (-rate[c], error[c] if math.isfinite(error[c]) else 1e300))
+    return {c: i + 1 for i, c in enumerate(order)}
+
+
+def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
+    """Markdown table and verdict lines of a plants study's episode rows (see the module)."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for row in rows:
+        base = str(row["controller"]).rsplit("@", 1)[0]
+        groups.setdefault((str(row["plant"]), base), []).append(row)
+    plants = list(dict.fromkeys(str(r["plant"]) for r in rows))
+    controllers = list(dict.fromkeys(base for _, base in groups))
+    rate = {k: 100.0 * float(np.mean([bool(r["success"]) for r in v])) for k, v in groups.items()}
+    error = {k: _median([r["max_error"] for r in v]) for k, v in groups.items()}
+    ranks = {
+        p: _ranks({c: rate[p, c] for c in controllers}, {c: error[p, c] for c in controllers})
+        for p in plants
+    }
+    tests = []
+    for p in plants:
+        if p == reference:
+            continue
+        for c in controllers:
+            key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
+            ref = {key(r): r["max_error"] for r in groups[reference, c]}
+            pairs = [(r["max_error"], ref[key(r)]) for r in groups[p, c] if key(r) in ref]
+            a, b = (np.array(x, dtype=float) for x in zip(*pairs, strict=True))
+            tests.append(((p, c), paired_test(p, reference, a, b)))
+    adjusted = dict(zip([k for k, _ in tests], holm([t.p_value for _, t in tests]), strict=True))
+    lines = [
+        "| plant | controller | rank | success % | median max error [m] | Δ error vs "
+        f"{reference}: tasks where {reference} is lower / tied / higher, Holm p | "
+        "median peak speed [rad/s] | "
+        "mean filter switches | median peak τ/τ_max | saturated episodes % |",
+        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|",
+    ]
+    for p in plants:
+        for c in controllers:
+            group = groups[p, c]
+            test = dict(tests).get((p, c))
+            versus = "—"
+            if test is not None:
+                versus = f"{test.higher} / {test.ties} / {test.lower}, {adjusted[p, c]:.2g}"
+            ratio = _median([r["peak_torque_ratio"] for r in group])
+            saturated = 100.0 * float(np.mean([(r["saturated_steps"] or 0) > 0 for r in group]))
+            lines.append(
+                f"| {p} | {c} | {ranks[p][c]} | {rate[p, c]:.0f} | {error[p, c]:.3g} | {versus} "
+                f"| {_median([r['max_joint_speed'] for r in group]):.3g} "
+                f"| {float(np.mean([r['filter_switches'] or 0 for r in group])):.2f} "
+                f"| {'—' if math.isnan(ratio) else f'{ratio:.2f}'} "
+                f"| {'—' if math.isnan(ratio) else f'{saturated:.0f}'} |"
+            )
+    lines.append("")
+    for p in plants:
+        if p == reference:
+            continue
+        order = [ranks[reference][c] for c in controllers]
+        here = [ranks[p][c] for c in controllers]
+        rho = float(stats.spearmanr(order, here).statistic) if len(controllers) > 2 else math.nan
+        moved = [
+            f"{c} {ranks[reference][c]}→{ranks[p][c]} ({rate[reference, c]:.0f}→{rate[p, c]:.0f} %)"
+            for c in controllers
+            if abs(ranks[p][c] - ranks[reference][c]) >= 2 or rate[reference, c] - rate[p, c] >= 15
+        ]
+        lines.append(
+            f"- **{p}**: Spearman ρ = {rho:.2f} with the {reference} ranking; "
+            + ("moved ≥ 2 places or lost ≥ 15 points: " + ", ".join(moved) if moved else "no "
+               "controller moved ≥ 2 places or lost ≥ 15 points of success")
+        )  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m otmm_qp.plants.headline RESULTS_DIR``: print the headline; 2 on bad input."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 1:
+        print("usage: python -m otmm_qp.plants.headline RESULTS_DIR", file=sys.stderr)
+        return 2
+    table = read_episodes(Path(args[0]), COLUMNS) if Path(args[0]).is_dir() else None
+    if table is None or "plant" not in table.column_names:
+        print(f"otmm-qp: error: {args[0]}: not a plants study (no episode rows with a plant)",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    print(headline(table.to_pylist()), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

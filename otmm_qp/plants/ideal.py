@@ -1,0 +1,64 @@
+r"""The ideal plant: the command is integrated exactly and the state is measured exactly.
+
+.. math:: q_{k+1} = q_k \oplus \dot q_k\,dt,\qquad \tilde q_k = q_k
+
+This is otmm-qp's behaviour before plants existed, and the default.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, ClassVar
+
+from otmm_qp.plants.plant import Plant, PlantStep
+from otmm_qp.robots.robot import FloatArray, Robot
+
+if TYPE_CHECKING:  # the simulation package imports this one
+    from otmm_qp.simulation.integrator import Integrator
+
+__all__ = ["IdealPlant", "IntegratorPlant"]
+
+
+class IdealPlant(Plant):
+    """Explicit Euler body through :meth:`Robot.integrate`; no lag, no delay, no noise."""
+
+    name: ClassVar[str] = "ideal"
+    body: ClassVar[bool] = True
+
+    def __init__(self) -> None:
+        self._robot: Robot | None = None
+        self._dt = 0.0
+
+    def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:
+        """Remember the robot and the period [s] (the body keeps no other state)."""
+        self._robot = robot
+        self._dt = dt
+
+    def advance(self, q: FloatArray, qdot: FloatArray) -> PlantStep:
+        r""":math:`q_{k+1} = q_k \oplus \dot q_k dt`; the actual velocity is the command."""
+        if self._robot is None:
+            raise RuntimeError("IdealPlant.advance called before reset")
+        return PlantStep(self._robot.integrate(q, qdot, self._dt), qdot)
+
+
+class IntegratorPlant(IdealPlant):
+    """The ideal plant whose body is a given :class:`~otmm_qp.simulation.integrator.Integrator`.
+
+    What :func:`~otmm_qp.simulation.simulate.simulate` uses when it gets an ``integrator``
+    and no plant (not registered: an integrator is code, not config).
+
+    Args:
+        integrator: The integration stage (``start(robot, dt)``, ``advance(q, q̇) -> q``).
+    """
+
+    def __init__(self, integrator: Integrator) -> None:
+        super().__init__()
+        self.integrator = integrator
+
+    def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:
+        """Start the integrator on ``robot`` with period ``dt`` [s]."""
+        super().reset(robot, q0, dt)
+        self.integrator.start(robot, dt)
+
+    def advance(self, q: FloatArray, qdot: FloatArray) -> PlantStep:
+        """``integrator.advance(q, q̇)``; the actual velocity is the command."""
+        return PlantStep(self.integrator.advance(q, qdot), qdot)

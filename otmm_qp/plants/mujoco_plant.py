@@ -1,0 +1,242 @@
+r"""The arm simulated by MuJoCo: rigid-body dynamics, gravity, joint servos with torque limits.
+
+The MuJoCo model is the one the peers use (:func:`otmm_qp.peers.models.mujoco_spec`: the
+robot's URDF, inertias from its ``<inertial>`` elements; planar arms their generated MJCF).
+Each joint gets a position servo fed by the integrated command plus a velocity servo on the
+command (two MuJoCo joint actuators) and, by default, gravity compensation routed through
+the same actuators:
+
+.. math::
+    q^{ref} \leftarrow q^{ref} + \dot q^{cmd}\,h,\qquad
+    \tau = \operatorname{clip}\big(g(q) + K_p(q^{ref} - q) + K_d(\dot q^{cmd} - \dot q),\
+    -\tau_{max},\ \tau_{max}\big)
+
+with :math:`K_{p,i} = \omega^2 M_{ii}(q_0)`, :math:`K_{d,i} = 2\zeta\omega M_{ii}(q_0)`,
+:math:`\omega = 2\pi f` (``frequency`` f [Hz], ``damping_ratio`` ζ) and :math:`M_{ii}(q_0)`
+the joint's diagonal of the mass matrix at the start — a decoupled servo of bandwidth f on
+the inertia the joint sees there. τ_max [N·m] is the URDF ``effort`` of each joint, applied
+as MuJoCo's joint ``actuatorfrcrange`` (the clip acts on the sum). The command is held over
+the control period ``dt``; MuJoCo steps ``ceil(dt / timestep)`` times at
+``h = dt / substeps`` in between, with its ``implicitfast`` integrator (the servo damping is
+integrated implicitly, so stiff servos stay stable). The controller sees MuJoCo's ``qpos``
+after the last substep; the period's actual velocity is its ``qvel`` there.
+
+Reported per period: the largest :math:`|\tau_i|/\tau_{max,i}` of the applied (clipped)
+torques, never above 1, and whether any joint asked for more than its limit. A state that
+becomes non-finite or faster than ``unstable_speed`` makes the period unstable: the loop
+stores why and stops the run (its other runs keep their results).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+
+from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
+from otmm_qp.plants.plant import Plant, PlantStep, check_number
+from otmm_qp.plants.urdf_dynamics import effort_limits
+from otmm_qp.robots.robot import FloatArray, Robot
+
+__all__ = ["MujocoPlant"]
+
+MUJOCO_HINT = "pip install mujoco (or otmm-qp[peers])"
+
+
+def _one_line(error: BaseException) -> str:
+    """MuJoCo's (multi-line) message on one line."""
+    return " ".join(str(error).split())
+
+
+class MujocoPlant(Plant):
+    """MuJoCo body with per-joint PD servos on the integrated command.
+
+    Args:
+        frequency: Servo bandwidth f [Hz], finite and > 0.
+        damping_ratio: Servo damping ratio ζ, finite and > 0.
+        timestep: Largest MuJoCo time step [s], finite and > 0 (the period is split evenly).
+        gravity: Whether gravity (−9.81 m/s² along world z) acts.
+        compensation: ``gravity`` adds the gravity torque (MuJoCo's gravity compensation,
+            routed through the joint's actuators so it counts against the torque limit);
+            ``none`` leaves gravity to the servo's PD.
+        effort_limit: Torque limit [N·m] for joints whose URDF has no positive ``effort``;
+            None (default) refuses such a URDF.
+        unstable_speed: Joint speed above which the simulation counts as unstable [rad/s].
+
+    Raises:
+        ParameterError: A parameter out of range (naming it).
+        ConfigError: MuJoCo is not installed (with the install hint).
+    """
+
+    name: ClassVar[str] = "mujoco"
+    body: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        frequency: float = 10.0,
+        damping_ratio: float = 1.0,
+        timestep: float = 0.002,
+        gravity: bool = True,
+        compensation: Literal["gravity", "none"] = "gravity",
+        effort_limit: float | None = None,
+        unstable_speed: float = 100.0,
+    ) -> None:
+        self.frequency = check_number("frequency", frequency)
+        self.damping_ratio = check_number("damping_ratio", damping_ratio)
+        self.timestep = check_number("timestep", timestep)
+        if not isinstance(gravity, bool):
+            raise ParameterError("gravity", f"must be true or false, got {gravity!r:.40}")
+        self.gravity = gravity
+        if compensation not in ("gravity", "none"):
+            raise ParameterError(
+                "compensation", f"must be 'gravity' or 'none', got {compensation!r:.40}"
+            )
+        self.compensation = compensation
+        self.effort_limit = (
+            None if effort_limit is None else check_number("effort_limit", effort_limit)
+        )
+        self.unstable_speed = check_number("unstable_speed", unstable_speed)
+        try:
+            import mujoco
+        except ImportError:
+            raise ConfigError("type", f"MuJoCo is not installed; {MUJOCO_HINT}") from None
+        self._mujoco = mujoco
+        self._robot: Robot | None = None
+        self._model: Any = None
+        self._data: Any = None
+        self.tau_max = np.zeros(0)
+        self.kp = np.zeros(0)
+        self.kd = np.zeros(0)
+
+    def _build(self, robot: Robot) -> None:
+        """Compile the robot's MuJoCo model with its servos and torque limits (once per robot)."""
+        from otmm_qp.peers import models
+
+        mujoco = self._mujoco
+        try:
+            description = models.describe(robot)
+            self.tau_max = effort_limits(description.urdf, robot.joint_names, self.effort_limit, "")
+            spec, _ = models.mujoco_spec(description)
+        except RobotLoadError as error:
+            raise ConfigError("", f"MuJoCo model: {_one_line(error)}") from None
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.option.gravity = [0.0, 0.0, -9.81] if self.gravity else [0.0, 0.0, 0.0]
+        joints = {j.name: j for j in spec.joints}
+        for name, limit in zip(robot.joint_names, self.tau_max, strict=True):
+            joint = joints.get(name)
+            if joint is None:
+                raise ConfigError("", f"MuJoCo model: joint {name!r} is not in the model")
+            joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            joint.actfrcrange = [-float(limit), float(limit)]
+            joint.actgravcomp = self.compensation == "gravity"
+            for kind in ("position", "velocity"):
+                actuator = spec.add_actuator()
+                actuator.name = f"otmm_{kind}_{name}"
+                actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+                actuator.target = name
+                if kind == "position":
+                    actuator.set_to_position(kp=1.0)
+                else:
+                    actuator.set_to_velocity(kv=1.0)
+        if self.compensation == "gravity":
+            for body in spec.bodies:
+                body.gravcomp = 1.0
+        try:
+            model = spec.compile()
+            joint_map = models.mujoco_joint_map(robot, model)
+        except (ValueError, RobotLoadError) as error:
+            raise ConfigError("", f"MuJoCo cannot compile the model: {_one_line(error)}") from None
+        self._robot = robot
+        self._model = model
+        self._data = mujoco.MjData(model)
+        self._qpos_index = joint_map.position_index
+        self._qvel_index = joint_map.velocity_index
+        ids = {
+            kind: np.array(
+                [
+                    mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"otmm_{kind}_{n}")
+                    for n in robot.joint_names
+                ]
+            )
+            for kind in ("position", "velocity")
+        }
+        self._position_ids, self._velocity_ids = ids["position"], ids["velocity"]
+
+    def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:
+        """Arm at rest at ``q0`` (nq,); gains from the mass matrix there; substeps for ``dt``.
+
+        Raises:
+            ConfigError: The robot has no peer description, MuJoCo cannot compile its model,
+                a joint has no effort limit or a moved link no inertia (naming it).
+        """
+        mujoco = self._mujoco
+        if self._robot is not robot:
+            self._build(robot)
+        model, data = self._model, self._data
+        mujoco.mj_resetData(model, data)
+        theta0 = robot.joint_coordinates(q0)
+        data.qpos[self._qpos_index] = theta0
+        mujoco.mj_forward(model, data)
+        mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass)
+        inertia = np.diag(mass)[self._qvel_index] + model.dof_armature[self._qvel_index]
+        omega = 2.0 * math.pi * self.frequency
+        self.kp = omega**2 * inertia
+        self.kd = 2.0 * self.damping_ratio * omega * inertia
+        pos, vel = self._position_ids, self._velocity_ids
+        model.actuator_gainprm[pos, 0] = self.kp
+        model.actuator_biasprm[pos, 1] = -self.kp
+        model.actuator_biasprm[pos, 2] = 0.0
+        model.actuator_gainprm[vel, 0] = self.kd
+        model.actuator_biasprm[vel, 2] = -self.kd
+        self.substeps = max(1, math.ceil(dt / self.timestep - 1e-9))
+        model.opt.timestep = dt / self.substeps
+        self._reference = np.array(theta0, dtype=float)
+        data.ctrl[pos] = theta0
+        mujoco.mj_forward(model, data)
+
+    def advance(self, q: FloatArray, qdot: FloatArray) -> PlantStep:
+        """Simulate one control period under the held command ``qdot`` (nv,) [rad/s]."""
+        mujoco, model, data, robot = self._mujoco, self._model, self._data, self._robot
+        if robot is None:
+            raise RuntimeError("MujocoPlant.advance called before reset")
+        h = model.opt.timestep
+        dofs, tau_max = self._qvel_index, self.tau_max
+        pos, vel = self._position_ids, self._velocity_ids
+        command = np.asarray(qdot, dtype=float)
+        data.ctrl[vel] = command
+        gravcomp = self.compensation == "gravity"
+        peak, saturated = 0.0, False
+        for _ in range(self.substeps):
+            self._reference = self._reference + command * h
+            data.ctrl[pos] = self._reference
+            mujoco.mj_step(model, data)
+            applied = data.qfrc_actuator[dofs]
+            wanted = data.actuator_force[pos] + data.actuator_force[vel]
+            if gravcomp:
+                wanted = wanted + data.qfrc_gravcomp[dofs]
+            saturated = saturated or bool(np.any(np.abs(wanted) > tau_max * (1.0 + 1e-9)))
+            peak = max(peak, float(np.max(np.abs(applied) / tau_max)))
+        theta = np.array(data.qpos[self._qpos_index])
+        actual = np.array(data.qvel[dofs])
+        stable = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(actual)))
+        detail = "" if stable else "MuJoCo state became non-finite"
+        if stable and float(np.max(np.abs(actual), initial=0.0)) > self.unstable_speed:
+            stable = False
+            detail = (
+                f"MuJoCo joint speed {float(np.max(np.abs(actual))):.3g} rad/s exceeds "
+                f"unstable_speed = {self.unstable_speed:g}"
+            )
+        if not stable:
+            return PlantStep(q, np.zeros(robot.nv), peak, saturated, False, detail)
+        return PlantStep(robot.configuration(theta), actual, peak, saturated)
+
+    def label(self) -> str:
+        """``mujoco(f=…,zeta=…)`` plus the non-default options."""
+        parts = [f"f={self.frequency:g}", f"zeta={self.damping_ratio:g}"]
+        if not self.gravity:
+            parts.append("no-gravity")
+        if self.compensation == "none":
+            parts.append("no-compensation")
+        return f"mujoco({','.join(parts)})"

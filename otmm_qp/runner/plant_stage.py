@@ -1,0 +1,99 @@
+"""Plants and conditioning of a run from its config: built fresh per run, checked before compute.
+
+A run's plant comes from the controller's own ``plant``, else the experiment's, else the
+suite's (default: ideal); its conditioning from the controller's ``conditioning`` list.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from otmm_qp.conditioning.pipeline import Conditioning, build_conditioning
+from otmm_qp.config.schema import ControllerConfig
+from otmm_qp.exceptions import ConfigError, DimensionError
+from otmm_qp.plants.chain import PlantChain, build_plant
+from otmm_qp.robots.robot import FloatArray, Robot
+
+__all__ = ["build_stage", "check_conditioning", "check_plant", "plant_record"]
+
+
+def build_stage(config: ControllerConfig) -> tuple[PlantChain, Conditioning]:
+    """A fresh plant (the controller's own, else ideal) and conditioning for one run."""
+    conditioning = [dict(s.params, type=s.type) for s in config.conditioning]
+    return build_plant(plant_record(config.plant)), build_conditioning(conditioning)
+
+
+def plant_record(spec: Any) -> Any:
+    """A plant config (a :class:`PluginSpec`, a list of them, or None) as plain data."""
+    if spec is None:
+        return None
+    if isinstance(spec, list):
+        return [dict(s.params, type=s.type) for s in spec]
+    return dict(spec.params, type=spec.type)
+
+
+def check_plant(plant: Any, robot: Robot, q0: FloatArray, dt: float, field: str) -> None:
+    """Build and reset a plant once on ``robot`` at ``q0``, so bad input fails before compute.
+
+    Raises:
+        ConfigError: Naming ``field`` (the plant's config path) and what is wrong: an
+            out-of-range parameter, a MuJoCo model that does not compile, a URDF without
+            inertias or effort limits, MuJoCo not installed.
+    """
+    try:
+        build_plant(plant, field).reset(robot, q0, dt)
+    except ConfigError as error:
+        if error.field.startswith(field):
+            raise
+        raise ConfigError(f"{field}.{error.field}".rstrip("."), error.message) from None
+    except DimensionError as error:
+        raise ConfigError(field, str(error)) from None
+
+
+def check_conditioning(
+    conditioning: dict[str, list[dict[str, Any]]], robot: Robot, dt: float, field: str
+) -> None:
+    """Build and reset every controller's conditioning stages once (see :func:`check_plant`).
+
+    Raises:
+        ConfigError: Naming the controller's ``conditioning`` stage and what is wrong.
+    """
+    for name, stages in conditioning.items():
+        where = f"{field}.controllers ({name}).conditioning"
+        try:
+            build_conditioning(stages, where).reset(robot, dt)
+        except ConfigError as error:
+            if error.field.startswith(where):
+                raise
+            raise ConfigError(f"{where}.{error.field}".rstrip("."), error.message) from None
+        except DimensionError as error:
+            raise ConfigError(where, str(error)) from None
+
+
+def experiment_stages(
+    default_plant: Any, controllers: list[ControllerConfig], robot: Robot, q0: FloatArray,
+    dt: float, field: str,
+) -> tuple[dict[str, Any], dict[str, list[dict[str, Any]]]]:  # fmt: skip
+    """Plant and conditioning records per controller name of one experiment, checked.
+
+    Args:
+        default_plant: The experiment's (else the suite's) ``plant`` config, or None.
+        controllers: The experiment's controller records.
+        robot: The arm.
+        q0: Start configuration (nq,).
+        dt: Control period [s].
+        field: Config path of the experiment.
+
+    Raises:
+        ConfigError: A plant or conditioning stage that cannot run (see :func:`check_plant`).
+    """
+    plants = {c.name: plant_record(c.plant or default_plant) for c in controllers}
+    conditioning = {
+        c.name: [dict(s.params, type=s.type) for s in c.conditioning]
+        for c in controllers
+        if c.conditioning
+    }
+    for plant in {repr(p): p for p in plants.values()}.values():
+        check_plant(plant, robot, q0, dt, f"{field}.plant")
+    check_conditioning(conditioning, robot, dt, field)
+    return plants, conditioning

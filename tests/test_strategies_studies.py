@@ -1,0 +1,41 @@
+"""The issue-20 study files are valid, and a tiny cut of one runs through group_verdict."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from otmm_qp.studies.execute import run_study
+from otmm_qp.studies.group_verdict import main
+from otmm_qp.studies.spec import load_study, parse_study, plan_study
+
+STUDIES = Path(__file__).resolve().parent.parent / "configs" / "studies"
+
+
+def test_strategies_studies_are_valid_and_hold_our_row() -> None:
+    for name, episodes in (("strategies_planar.yaml", 1496), ("strategies_arms.yaml", 1920)):
+        plan = plan_study(load_study(STUDIES / name), name)
+        assert len(plan.episodes) == episodes
+        names = [c.name for c in plan.controllers]
+        assert "sigma_lm" in names and "OTMM-directional+sigma_lm" in names
+        assert "held_target" in {g.type for g in load_study(STUDIES / name).generators}
+
+
+def test_a_tiny_cut_runs_and_gets_a_verdict(tmp_path: Path) -> None:
+    data = yaml.safe_load((STUDIES / "strategies_planar.yaml").read_text())
+    data["robots"] = data["robots"][:1]
+    data["generators"] = [
+        {**g, "count": 2} for g in data["generators"] if g["type"] in ("held_target", "boundary")
+    ]
+    data["controllers"] = [
+        c for c in data["controllers"] if c["name"] in ("dls", "dls_error", "sigma_lm")
+    ]
+    plan = plan_study(parse_study(data))
+    outcome = run_study(plan, tmp_path / "study", "tiny", workers=1)
+    assert outcome.ran == 12
+    report = tmp_path / "verdict.md"
+    assert main([str(tmp_path / "study"), "--ours", "sigma_lm", "--out", str(report)]) == 0
+    text = report.read_text()
+    assert "| planar2 | held_target |" in text and "| planar2 | boundary |" in text
+    assert main([str(tmp_path / "study"), "--ours", "nope"]) == 2

@@ -37,7 +37,7 @@ def main() -> dict[str, dict[str, object]]:
             end_quaternion=_quaternion(goal[:3, :3]),
             duration=4.0,
         )
-        controller = Controller(name, filters, QpBackend(solver="daqp", damping=1e-3))
+        controller = Controller(name, filters, QpBackend(solver="daqp", regularization=1e-3))
         episode = Episode(robot, trajectory, q0, DT, 5.0, Loop("clik", 10.0), task_weight=weight)
         run = simulate(episode, controller)
         metrics = compute_metrics(run)

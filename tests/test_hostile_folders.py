@@ -261,6 +261,13 @@ def test_study_report_on_damaged_folders_is_one_line(
         err = capsys.readouterr().err
         assert expected[name] in err and "Traceback" not in err, (name, err)
         assert err.strip().count("otmm-qp: error") == 1, (name, err)
+        if name == "episodes symlinked out":  # --resume refuses it before computing anything
+            study = _study_file(tmp_path, TINY)
+            argv = ["study", str(study), "--out", str(folder), "--workers", "1", "--quiet"]
+            parts = sorted(p.name for p in (outside / EPISODES).iterdir())
+            assert main(argv) == 2
+            _one_line(capsys, "is a symlink")
+            assert sorted(p.name for p in (outside / EPISODES).iterdir()) == parts
     # a read-only folder (root ignores modes: refuse where every write goes through)
     folder = tmp_path / "read-only"
     shutil.copytree(study_out, folder)

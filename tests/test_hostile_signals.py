@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-ITERATIONS = 120
+ITERATIONS = 80  # the code before the fix failed ~46 % of iterations
 
 RACE = """
 import multiprocessing, os, random, signal, sys, threading, time, faulthandler

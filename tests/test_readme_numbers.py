@@ -42,6 +42,27 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
             # The README shows the median; the report adds its bootstrap interval after it.
             assert re.search(rf"\| {re.escape(value)} \[", line), (controller, value, line)
     _check_reference_sentence(out)
+    _check_paired_sentence(report)
+    _check_graceful_sentence(pooled)
+
+
+def _check_graceful_sentence(pooled: str) -> None:
+    """README: how many unachievable tasks the graceful criteria pass, from the report's rates."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    found = re.search(r"dls passes (\d+) of them, qp and OTMM\+pinv\[sigma_s=0\.05\] (\d+)\)", text)
+    assert found, "the README's graceful sentence changed its form"
+
+    def successes(controller: str) -> int:
+        line = next(r for r in pooled.splitlines() if r.startswith(f"| {controller} |"))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        return round(int(cells[1]) * float(cells[3].split(" %")[0]) / 100)
+
+    certified = (
+        44  # the reference sentence's N, checked against the data by _check_reference_sentence
+    )
+    assert successes("dls") - certified == int(found.group(1))
+    for name in ("qp", "OTMM+pinv[sigma_s=0.05]"):
+        assert successes(name) - certified == int(found.group(2)), name
 
 
 def _check_reference_sentence(out: Path) -> None:
@@ -62,3 +83,36 @@ def _check_reference_sentence(out: Path) -> None:
     for name in ("dls", "qp", "OTMM+pinv[sigma_s=0.02]", "OTMM+pinv[sigma_s=0.05]"):
         solved = {r["task_id"] for r in rows if r["controller"] == name and r["success"]}
         assert solved == feasible, name
+
+
+def _check_paired_sentence(report: str) -> None:
+    """The README's paired OTMM + pinv vs pinv counts and Holm p are the report's."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    found = re.search(
+        r"strictly lower oracle-relative max error than pinv on (\d+)–(\d+) of the (\d+) "
+        r"2-link tasks "
+        r"\(tied on (\d+)–(\d+), higher on (\d+)–(\d+)\); the Wilcoxon test favours "
+        r"OTMM \+ pinv \(Holm p ≤ ([0-9.]+)\)",
+        text,
+    )
+    assert found, "the README's paired sentence changed its form"
+    lower, ties, higher, holm = (
+        sorted(map(int, found.group(1, 2))),
+        sorted(map(int, found.group(4, 5))),
+        sorted(map(int, found.group(6, 7))),
+        float(found.group(8)),
+    )
+    table = report[report.index("### Paired comparisons on planar2: oracle_relative_error") :]
+    table = table[: table.index("\n###")]
+    rows = [
+        [c.strip() for c in line.strip("|").split("|")]
+        for line in table.splitlines()
+        if line.startswith("| OTMM+pinv") and "| pinv |" in line
+    ]
+    assert len(rows) == 2
+    assert sorted(int(r[3]) for r in rows) == lower
+    assert sorted(int(r[4]) for r in rows) == ties
+    assert sorted(int(r[5]) for r in rows) == higher
+    assert all(r[2] == found.group(3) for r in rows)
+    assert max(float(r[9]) for r in rows) == holm
+    assert all(r[10].startswith("OTMM+pinv") for r in rows)

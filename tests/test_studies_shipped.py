@@ -61,3 +61,9 @@ def test_bench_study_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str
     numbers = json.loads(out.read_text())
     assert numbers["episodes"] > 0 and numbers["serial_compute_s"] > 0
     assert numbers["serial_overhead"] > -1.0 and numbers["speedup"] > 0
+
+
+def test_arms_study_judges_speed_by_each_robots_own_limits() -> None:
+    """Issue 18: 3 rad/s was below the UR5's limits and above the Panda's."""
+    success = load_study(STUDIES / "arms.yaml").success
+    assert success.max_joint_speed is None and success.joint_speed_factor == 1.0

@@ -22,7 +22,15 @@ EXIT_BAD_INPUT = 2
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``otmm-qp study``."""
-    parser.add_argument("file", type=Path, help="YAML study file")
+    parser.add_argument(
+        "file", type=Path, help="YAML study file, or 'show' (then DIR --episode ID)"
+    )
+    parser.add_argument(
+        "directory", nargs="?", help="with 'show': the study directory holding the episode"
+    )
+    parser.add_argument(
+        "--episode", help="with 'show': episode id (the report's 'id' column, or a longer prefix)"
+    )
     parser.add_argument("--out", help="output directory (default: results/<safe study name>)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
@@ -52,6 +60,15 @@ def run(args: argparse.Namespace) -> int:
     from otmm_qp.studies.execute import run_study
     from otmm_qp.studies.spec import load_study, plan_study
 
+    if str(args.file) == "show":
+        from otmm_qp.commands.study_show import run as show
+
+        return show(args)
+    if args.directory is not None or args.episode is not None:
+        raise ConfigError(
+            str(args.directory or "--episode"),
+            "only 'otmm-qp study show DIR --episode ID' takes it",
+        )
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
     from otmm_qp.output.folders import check_out_argument

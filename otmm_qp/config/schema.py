@@ -102,6 +102,9 @@ class ExperimentConfig(Strict):
     clik_gain: float | None = Field(None, ge=0.0)
     task_weight: TaskWeight = None
     plant: PlantConfig | None = None
+    #: The trajectory leaves the workspace on purpose (a study's beyond-reach task): the
+    #: runner's trajectory check (``check_reachable``) is skipped, as for study episodes.
+    out_of_reach: bool = False
 
     @field_validator("name")
     @classmethod

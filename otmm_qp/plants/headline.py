@@ -72,7 +72,8 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     adjusted = dict(zip([k for k, _ in tests], holm([t.p_value for _, t in tests]), strict=True))
     lines = [
         "| plant | controller | rank | success % | median max error [m] | Δ error vs "
-        f"{reference}: win rate of {reference}, Holm p | median peak speed [rad/s] | "
+        f"{reference}: tasks where {reference} is lower / tied / higher, Holm p | "
+        "median peak speed [rad/s] | "
         "mean filter switches | median peak τ/τ_max | saturated episodes % |",
         "|---|---|---:|---:|---:|---|---:|---:|---:|---:|",
     ]
@@ -82,7 +83,7 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
             test = dict(tests).get((p, c))
             versus = "—"
             if test is not None:
-                versus = f"{1.0 - test.win_rate:.2f}, {adjusted[p, c]:.2g}"
+                versus = f"{test.higher} / {test.ties} / {test.lower}, {adjusted[p, c]:.2g}"
             ratio = _median([r["peak_torque_ratio"] for r in group])
             saturated = 100.0 * float(np.mean([(r["saturated_steps"] or 0) > 0 for r in group]))
             lines.append(

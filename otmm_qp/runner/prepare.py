@@ -188,7 +188,8 @@ def prepare_experiment(
         for mode in (config.loop_modes or suite.loop_modes)
     )
     controllers, skipped = build_controllers(config, field_path, suite.metrics.blow_up_speed)
-    prepare(episodes[0], controllers, field_path)
+    # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
+    prepare(episodes[0], controllers, field_path, reachable=not config.out_of_reach)
     plants, conditioning = experiment_stages(
         config.plant if config.plant is not None else suite.plant,
         config.controllers, robot, episodes[0].q0, episodes[0].dt, field_path,

@@ -8,7 +8,6 @@ row with ``status = "error"`` and the one-line message.
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +20,8 @@ from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.studies.criteria import failure_causes, speed_ratios
+from otmm_qp.studies.drilldown import episode_id
 from otmm_qp.studies.oracle import ORACLE, failed_columns, oracle_columns, oracle_fields
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.spec import plant_name
@@ -103,24 +104,9 @@ def one_line(error: BaseException) -> str:
     return f"{type(error).__name__}: {text}" if text else type(error).__name__
 
 
-def is_success(metrics: dict[str, Any], criteria: SuccessCriteria) -> bool:
-    """Whether a completed episode's metrics meet every criterion."""
-    if not metrics.get("completed"):
-        return False
-    checks = [
-        (criteria.max_position_error, "max_error"),
-        (criteria.max_orientation_error, "max_orientation_error"),
-        (criteria.max_joint_speed, "max_joint_speed"),
-    ]
-    for bound, name in checks:
-        value = metrics.get(name)
-        if bound is None or value is None or (isinstance(value, float) and math.isnan(value)):
-            continue
-        if not float(value) <= bound:
-            return False
-    if criteria.no_limit_violation and int(metrics.get("position_violations") or 0) > 0:
-        return False
-    return not (criteria.no_blow_up and bool(metrics.get("blow_up")))
+def is_success(row: dict[str, Any], criteria: SuccessCriteria) -> bool:
+    """Whether an episode row meets every criterion (:func:`criteria.failure_causes` is empty)."""
+    return not failure_causes(row, criteria)
 
 
 def _base_row(
@@ -136,6 +122,7 @@ def _base_row(
         "study": config.name,
         "episode_key": key,
         "task_id": task_id(config, unit.robot, unit.generator, unit.task_index),
+        "episode_id": episode_id(key),
         "robot": config.robots[unit.robot].name,
         "generator": gen.type,
         "generator_entry": entry_label(config, unit.generator),
@@ -263,9 +250,10 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             continue
         run, metrics = record.result, record.metrics
         row.update({name: metrics.get(name) for name in METRIC_NAMES})
+        row.update(speed_ratios(run))
         row["status"] = "ok" if run.error_message is None else "stopped"
         row["error_message"] = run.error_message
-        row["success"] = is_success(metrics, config.success)
+        row["success"] = is_success(row, config.success)
         result.rows.append(row)
         if unit.time_series:
             result.series.append(_series(run, key, config.time_series.stride))

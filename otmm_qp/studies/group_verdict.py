@@ -132,9 +132,9 @@ def group_verdicts(
                 continue
             best = min(others, key=lambda n: medians[n][k])
             result = results[(k, best)]
-            if result.p_holm < alpha and result.median_difference < 0:
+            if result.p_holm < alpha and result.median_difference.value < 0:
                 outcome = "better"
-            elif result.p_holm < alpha and result.median_difference > 0:
+            elif result.p_holm < alpha and result.median_difference.value > 0:
                 outcome = "worse"
             else:
                 outcome = "tie"

@@ -1,14 +1,26 @@
-"""Study report: success rates, medians with intervals, paired tests, σ_min curves, figures.
+"""Study report: verdicts, Pareto figure, failure causes, then the detailed tables.
 
 ``write_study_report(DIR)`` reads ``DIR/study.json`` and the Parquet dataset and writes
-``DIR/study_report.md``, ``DIR/study_report.html`` and ``DIR/figures/*.png`` (contracts §3).
-Every number in them is computed here from the stored rows.
+``DIR/study_report.md``, ``DIR/study_report.html`` (the run report's style, figures embedded)
+and ``DIR/figures/*.png``. Every number in them is computed here from the stored rows.
+
+Per robot the report leads with the verdict in plain words — which controller to pick for
+singular crossings, for beyond-reach motion and for limit-bound motion, each backed by the
+exact McNemar test on the same tasks, and the most accurate one by the Wilcoxon test of the
+oracle-relative error — and a Pareto figure, then the failure causes per controller and
+generator, the worst episode of each controller (with its id for ``otmm-qp study show``) and
+the detailed tables. Rows with ``controller == "oracle"`` are the task's offline reference:
+shown as a row and a point, never ranked or tested; their ``reference.*`` columns (joined by
+``task_id``) give every controller row its **oracle-relative error**
+``max_error − reference.max_error`` [m].
 """
 
 from __future__ import annotations
 
+import base64
 import io
 import math
+import re
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -20,18 +32,31 @@ import numpy as np
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
-from otmm_qp.studies.episodes import is_success
+from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
+from otmm_qp.studies.drilldown import episode_id
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
+    ALPHA,
+    Interval,
+    PairedRates,
     PairedResult,
+    Ranked,
     binned_medians,
-    bootstrap_median,
+    bootstrap_interval,
     paired_comparisons,
-    rank_with_ties,
+    paired_ranking,
+    paired_success,
+    significant_digits,
     wilson_interval,
 )
 from otmm_qp.studies.storage import read_study_folder
 
+#: The reference rows' controller name (the data contract with the oracle).
+ORACLE = "oracle"
+#: Oracle-relative error column computed for every controller row [m].
+RELATIVE_ERROR = "oracle_relative_error"
+#: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
+RESAMPLES = 2000
 #: Metrics summarised by median + bootstrap interval: (column, label, unit).
 MEDIAN_METRICS: tuple[tuple[str, str, str], ...] = (
     ("rms_error", "RMS error", "m"),
@@ -47,13 +72,17 @@ SIGMA_BINS = 6
 
 @dataclass
 class Rows:
-    """Episode rows as Python dicts, with the success flag recomputed from the criteria."""
+    """Episode rows as Python dicts, with success and failure causes recomputed.
+
+    ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
+    (select them with ``controller=ORACLE``).
+    """
 
     rows: list[dict[str, Any]]
 
     def controllers(self) -> list[str]:
-        """Controllers in first-seen order."""
-        return list(dict.fromkeys(r["controller"] for r in self.rows))
+        """Competing controllers in first-seen order (the reference excluded)."""
+        return list(dict.fromkeys(r["controller"] for r in self.rows if not _is_oracle(r)))
 
     def robots(self) -> list[str]:
         """Robots in first-seen order."""
@@ -63,6 +92,23 @@ class Rows:
         """Rows whose columns equal the given values."""
         return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
 
+    @property
+    def has_reference(self) -> bool:
+        """Whether any task has an offline reference."""
+        return any(_is_oracle(r) or _known(r.get("reference.achievable")) for r in self.rows)
+
+    def accuracy_metric(self) -> str:
+        """The headline accuracy column: oracle-relative error, or max error without reference."""
+        return RELATIVE_ERROR if self.has_reference else "max_error"
+
+
+def _is_oracle(row: dict[str, Any]) -> bool:
+    return row.get("controller") == ORACLE
+
+
+def _known(value: Any) -> bool:
+    return value is not None and not (isinstance(value, float) and math.isnan(value))
+
 
 def _value(row: dict[str, Any], name: str) -> float:
     value = row.get(name)
@@ -71,8 +117,19 @@ def _value(row: dict[str, Any], name: str) -> float:
     return float(value)
 
 
-def _task_key(row: dict[str, Any]) -> tuple[object, ...]:
-    return (row["robot"], row["generator"], row["task_index"], row["loop_mode"])
+def task_key(row: dict[str, Any]) -> tuple[object, ...]:
+    """The task an episode ran on (``task_id`` when stored) and its loop mode."""
+    task = row.get("task_id") or (
+        row["robot"],
+        row["generator"],
+        row.get("generator_params"),
+        row["task_index"],
+    )
+    return (task, row["loop_mode"])
+
+
+def _task(row: dict[str, Any]) -> object:
+    return task_key(row)[0]
 
 
 def _fmt(value: float, digits: int = 3) -> str:
@@ -81,12 +138,40 @@ def _fmt(value: float, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def _interval(value: float, low: float, high: float) -> str:
+def _interval(value: float | Interval, low: float = math.nan, high: float = math.nan) -> str:
+    """``value [low, high]``; endpoints with only the digits their Monte-Carlo error fixes."""
+    if isinstance(value, Interval):
+        digits = [significant_digits(e, value.mc_error) for e in (value.low, value.high)]
+        return f"{_fmt(value.value)} [{_fmt(value.low, digits[0])}, {_fmt(value.high, digits[1])}]"
     return f"{_fmt(value)} [{_fmt(low)}, {_fmt(high)}]"
 
 
+def join_reference(rows: list[dict[str, Any]]) -> None:
+    """Copy each ``oracle`` row's ``reference.*`` columns onto the rows of its task, in place.
+
+    Columns already on a row are kept; ``reference.max_error`` falls back to the oracle row's
+    ``max_error`` and ``reference.final_error`` is its ``final_error``. Then every row gets
+    :data:`RELATIVE_ERROR` = ``max_error − reference.max_error`` (NaN without a reference).
+    """
+    references: dict[object, dict[str, Any]] = {}
+    for row in rows:
+        if not _is_oracle(row):
+            continue
+        reference = {k: v for k, v in row.items() if k.startswith("reference.")}
+        reference.setdefault("reference.max_error", row.get("max_error"))
+        reference["reference.final_error"] = row.get("final_error")
+        references[_task(row)] = reference
+    for row in rows:
+        for name, value in references.get(_task(row), {}).items():
+            if not _known(row.get(name)):
+                row[name] = value
+        row[RELATIVE_ERROR] = _value(row, "max_error") - _value(row, "reference.max_error")
+
+
 def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config (from ``study.json``) and the rows of this study and plan.
+    """The study config and its rows: references joined, success and causes recomputed.
+
+    Only the rows of this study and plan are read (``study.json``).
 
     What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
     stderr, one line per reason.
@@ -100,40 +185,55 @@ def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
     if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
     rows = data.table.to_pylist()
+    join_reference(rows)
     for row in rows:
-        row["success"] = row.get("status") != "error" and is_success(row, config.success)
+        if not row.get("episode_id"):
+            row["episode_id"] = episode_id(str(row.get("episode_key", "")))
+        causes = () if _is_oracle(row) else failure_causes(row, config.success)
+        row["failure_causes"] = causes
+        row["success"] = not causes
     return config, Rows(rows)
+
+
+def _median_metrics(rows: Rows) -> tuple[tuple[str, str, str], ...]:
+    if rows.has_reference:
+        return ((RELATIVE_ERROR, "oracle-relative max error", "m"), *MEDIAN_METRICS)
+    return MEDIAN_METRICS
 
 
 def success_table(
     rows: Rows, robot: str | None
 ) -> tuple[list[str], dict[str, tuple[float, float, float]]]:
-    """Markdown lines of success rates and medians, and ``controller → (rate, low, high)``."""
+    """Markdown lines of success rates and medians, and ``controller → (rate, low, high)``.
+
+    The reference (``oracle``) is the last row, without a success rate.
+    """
+    metrics = _median_metrics(rows)
     header = (
         "| controller | episodes | errors | success [95 % CI] | "
-        + " | ".join(f"median {label} [{unit}] (95 % CI)" for _, label, unit in MEDIAN_METRICS)
+        + " | ".join(f"median {label} [{unit}] (95 % CI)" for _, label, unit in metrics)
         + " |"
     )
-    lines = [header, "|" + "---|" * (4 + len(MEDIAN_METRICS))]
+    lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
-    for name in rows.controllers():
-        selected = rows.select(controller=name, **({"robot": robot} if robot else {}))
+    where = {"robot": robot} if robot else {}
+    for name in [*rows.controllers(), ORACLE]:
+        selected = rows.select(controller=name, **where)
         if not selected:
             continue
         n = len(selected)
-        wins = sum(1 for r in selected if r["success"])
-        low, high = wilson_interval(wins, n)
-        rates[name] = (wins / n, low, high)
         errors = sum(1 for r in selected if r.get("status") == "error")
-        cells = [
-            name,
-            str(n),
-            str(errors),
-            f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
-        ]
-        for metric, _, _ in MEDIAN_METRICS:
+        if name == ORACLE:
+            rate = "reference (not ranked)"
+        else:
+            wins = sum(1 for r in selected if r["success"])
+            low, high = wilson_interval(wins, n)
+            rates[name] = (wins / n, low, high)
+            rate = f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
+        cells = [name, str(n), str(errors), rate]
+        for metric, _, _ in metrics:
             values = np.array([_value(r, metric) for r in selected])
-            cells.append(_interval(*bootstrap_median(values, seed=0, resamples=1000)))
+            cells.append(_interval(bootstrap_interval(values, seed=0, resamples=RESAMPLES)))
         lines.append("| " + " | ".join(cells) + " |")
     return lines, rates
 
@@ -157,27 +257,407 @@ def generator_table(rows: Rows) -> list[str]:
     return lines
 
 
-def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, tuple[float, float, float]]:
-    """``controller → (median, low, high)`` of ``metric`` on ``robot``."""
-    return {
-        name: bootstrap_median(
-            np.array([_value(r, metric) for r in rows.select(controller=name, robot=robot)]),
-            seed=0,
-            resamples=1000,
-        )
-        for name in rows.controllers()
-        if rows.select(controller=name, robot=robot)
-    }
+def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, Interval]:
+    """``controller → median [interval]`` of ``metric`` on ``robot`` (the oracle included)."""
+    out = {}
+    for name in [*rows.controllers(), ORACLE]:
+        selected = rows.select(controller=name, robot=robot)
+        if selected:
+            values = np.array([_value(r, metric) for r in selected])
+            out[name] = bootstrap_interval(values, seed=0, resamples=RESAMPLES)
+    return out
 
 
 def paired_for(rows: Rows, robot: str, metric: str) -> list[PairedResult]:
-    """Paired comparisons of every controller pair on ``robot``'s tasks."""
+    """Paired comparisons of every controller pair on ``robot``'s tasks (no oracle)."""
     values: dict[str, dict[tuple[object, ...], float]] = {}
     for row in rows.select(robot=robot):
         value = _value(row, metric)
-        if math.isfinite(value):
-            values.setdefault(row["controller"], {})[_task_key(row)] = value
-    return paired_comparisons(values)
+        if math.isfinite(value) and not _is_oracle(row) and row.get("status") != "error":
+            values.setdefault(row["controller"], {})[task_key(row)] = value
+    return paired_comparisons(values, seed=0, resamples=RESAMPLES)
+
+
+def success_flags(selected: list[dict[str, Any]]) -> dict[str, dict[tuple[object, ...], bool]]:
+    """``controller → {task key → success}`` of the competitors among ``selected``."""
+    flags: dict[str, dict[tuple[object, ...], bool]] = {}
+    for row in selected:
+        if not _is_oracle(row):
+            flags.setdefault(row["controller"], {})[task_key(row)] = bool(row["success"])
+    return flags
+
+
+@dataclass(frozen=True)
+class TaskGroup:
+    """A kind of motion a verdict is given for: a label, how its tasks are chosen, its rows."""
+
+    label: str
+    reading: str
+    rows: list[dict[str, Any]]
+
+
+def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
+    """Singular crossings, beyond-reach and limit-bound tasks of ``robot``'s competitor rows.
+
+    With a reference: ``reference.near_singular`` and achievable, ``reference.achievable``
+    false, ``reference.touches_position_limit``; without one, by generator (``near_singular``
+    and ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
+    """
+    own = [r for r in rows.select(robot=robot) if not _is_oracle(r)]
+    if rows.has_reference:
+
+        def flag(row: dict[str, Any], name: str) -> bool:
+            value = row.get(name)
+            return _known(value) and bool(value)
+
+        return [
+            TaskGroup(
+                "singular crossings",
+                "tasks whose reference passes near a singularity (σ_min < σ_S) and is achievable",
+                [
+                    r
+                    for r in own
+                    if flag(r, "reference.near_singular") and flag(r, "reference.achievable")
+                ],
+            ),
+            TaskGroup(
+                "beyond-reach motion",
+                "tasks the reference finds unachievable (judged by the graceful criteria)",
+                [r for r in own if not is_achievable(r)],
+            ),
+            TaskGroup(
+                "limit-bound motion",
+                "tasks whose reference touches a position limit",
+                [r for r in own if flag(r, "reference.touches_position_limit")],
+            ),
+        ]
+    return [
+        TaskGroup(
+            "singular crossings",
+            "generators near_singular and joint_path (no reference stored)",
+            [r for r in own if r["generator"] in ("near_singular", "joint_path")],
+        ),
+        TaskGroup(
+            "beyond-reach motion",
+            "generator beyond_reach (no reference stored)",
+            [r for r in own if r["generator"] == "beyond_reach"],
+        ),
+        TaskGroup(
+            "limit-bound motion",
+            "needs the offline reference (which tasks touch a limit); none stored",
+            [],
+        ),
+    ]
+
+
+def _rate(flags: dict[tuple[object, ...], bool]) -> tuple[float, int]:
+    return (sum(flags.values()) / len(flags) if flags else math.nan), len(flags)
+
+
+def _pct(value: float) -> str:
+    return f"{100 * value:.0f} %" if math.isfinite(value) else "–"
+
+
+def _p(value: float) -> str:
+    return f"{value:.2g}" if math.isfinite(value) else "–"
+
+
+def group_verdict(group: TaskGroup) -> str:
+    """One plain-words verdict line: whom to pick for the group, with the paired evidence."""
+    tasks = len({task_key(r) for r in group.rows})
+    head = f"- **{group.label.capitalize()}** ({tasks} tasks: {group.reading}): "
+    if not group.rows:
+        return head + "no such tasks in this study."
+    flags = success_flags(group.rows)
+    rates = {name: _rate(f)[0] for name, f in flags.items()}
+    tests = paired_success(flags)
+    ranking = paired_ranking(rates, tests, higher_is_better=True)
+    if len(rates) == 1:
+        name, rate = next(iter(rates.items()))
+        return head + f"only {name} ran (success {_pct(rate)})."
+    if all(rate == 0.0 for rate in rates.values()):
+        return head + "no controller succeeds on any of them."
+    top = [r for r in ranking if r.rank == 1]
+    best = max(top, key=lambda r: (rates[r.name], r.name))
+    if len(top) == len(ranking):
+        return (
+            head
+            + "no paired test separates the controllers, so none is to be preferred here ("
+            + ", ".join(
+                f"{r.name} {_pct(rates[r.name])}"
+                for r in sorted(ranking, key=lambda r: (-rates[r.name], r.name))
+            )
+            + ")."
+        )
+    text = head + f"pick **{best.name}** (success {_pct(rates[best.name])})"
+    others = [r for r in top if r.name != best.name]
+    if others:
+        text += "; not separated from it by the paired test: " + ", ".join(
+            f"{r.name} ({_pct(rates[r.name])})" for r in others
+        )
+    beaten = [r for r in ranking if best.name in r.beaten_by]
+    if beaten:
+        runner = max(beaten, key=lambda r: (rates[r.name], r.name))
+        test = _find_test(tests, best.name, runner.name)
+        mine, theirs = (
+            (test.a_only, test.b_only) if test.a == best.name else (test.b_only, test.a_only)
+        )
+        text += (
+            f"; it beats {len(beaten)} of the others, the closest {runner.name} "
+            f"({_pct(rates[runner.name])}: {best.name} alone succeeds on {mine} tasks, "
+            f"{runner.name} alone on {theirs}, McNemar Holm p = {_p(test.p_holm)})"
+        )
+    return text + "."
+
+
+def _find_test(tests: list[PairedRates], a: str, b: str) -> PairedRates:
+    return next(t for t in tests if {t.a, t.b} == {a, b})
+
+
+def accuracy_verdict(rows: Rows, robot: str) -> str:
+    """The most accurate controller by the paired Wilcoxon test of the headline accuracy."""
+    metric = rows.accuracy_metric()
+    label = "oracle-relative max error" if metric == RELATIVE_ERROR else "max error"
+    results = paired_for(rows, robot, metric)
+    medians = {
+        name: interval
+        for name, interval in median_intervals(rows, robot, metric).items()
+        if name != ORACLE and math.isfinite(interval.value)
+    }
+    if not medians:
+        return f"- **Accuracy ({label})**: no finite values."
+    ranking = paired_ranking({n: m.value for n, m in medians.items()}, results)
+    top = [r for r in ranking if r.rank == 1]
+    shown = ", ".join(f"{r.name} {_interval(medians[r.name])} m" for r in top[:4])
+    more = f" (+{len(top) - 4} more)" if len(top) > 4 else ""
+    return (
+        f"- **Accuracy ({label}, median [95 % CI])**: lowest, not beaten in any paired "
+        f"Wilcoxon test (Holm p < {ALPHA:g}): {shown}{more}."
+    )
+
+
+def _verdicts(rows: Rows, robot: str) -> list[str]:
+    """The plain-words verdict lines of ``robot``."""
+    lines = [group_verdict(group) for group in task_groups(rows, robot)]
+    lines.append(accuracy_verdict(rows, robot))
+    return lines
+
+
+def _ranking_line(ranking: list[Ranked], what: str, test: str) -> str:
+    return (
+        f"Ranking by {what} (rank = 1 + the number of controllers that beat it in the paired "
+        f"{test}, Holm p < {ALPHA:g}; = marks a shared rank, i.e. as many controllers beat "
+        "each; it does not say the two are indistinguishable): "
+        + ", ".join(f"{r.rank}{'=' if r.tied else ''} {r.name}" for r in ranking)
+    )
+
+
+def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> str:
+    """The Markdown report: overview, per robot verdicts → figure → causes → details."""
+    out = _overview(config, rows)
+    for robot in rows.robots():
+        out += _robot_section(rows, robot, figures)
+    lines, _ = success_table(rows, None)
+    out += ["## All robots", "", *lines, ""]
+    out += [
+        "## Success rate by robot and generator (95 % Wilson CI)",
+        "",
+        *generator_table(rows),
+        "",
+    ]
+    rest = [f for f in figures if f not in {_pareto_path(r) for r in rows.robots()}]
+    if rest:
+        out += ["## Figures", ""] + [f"![{f}]({f})" for f in rest] + [""]
+    return "\n".join(out)
+
+
+def _pareto_path(robot: str) -> str:
+    return f"figures/{safe_name(f'pareto-{robot}.png')}"
+
+
+def _criteria_text(config: StudyConfig) -> str:
+    c = config.success
+    speed = (
+        f"peak joint speed ‖q̇‖∞ ≤ {c.max_joint_speed:g} rad/s"
+        if c.max_joint_speed is not None
+        else f"every joint within {c.joint_speed_factor:g} × its own velocity limit"
+    )
+    error = f"max position error ≤ {c.max_position_error:g} m" if c.max_position_error else ""
+    if c.max_orientation_error:
+        error += f", max orientation error ≤ {c.max_orientation_error:g} rad"
+    g = c.graceful
+    return (
+        f"Success on achievable tasks: completed, {error}, {speed}"
+        + (", no position-limit violation" if c.no_limit_violation else "")
+        + (", no blow-up" if c.no_blow_up else "")
+        + ". On tasks the reference finds unachievable (graceful): the same speed, limit and "
+        f"blow-up bounds, max error ≤ {g.error_factor:g} × the reference's"
+        + (
+            ", final error back within the tolerance (or that factor of the reference's)"
+            if g.return_to_path
+            else ""
+        )
+        + f", no chatter (one-step joint-speed change ≤ {g.max_jump_factor:g} × the joint's "
+        "velocity limit)."
+    )
+
+
+def _overview(config: StudyConfig, rows: Rows) -> list[str]:
+    """Report title, description, what was run, the criteria and the statistics used."""
+    competitors = [r for r in rows.rows if not _is_oracle(r)]
+    errors = sum(1 for r in competitors if r.get("status") == "error")
+    tasks = len({_task(r) for r in rows.rows})
+    reference = (
+        f"Each task's offline-optimal reference ({ORACLE} rows) is shown as a row and a point, "
+        "never ranked; accuracy is the oracle-relative error max_error − reference.max_error."
+        if rows.has_reference
+        else "No offline reference is stored: tasks are judged by the tolerances alone and "
+        "accuracy is the max error."
+    )
+    return [
+        f"# Study {config.name}",
+        "",
+        config.description,
+        "",
+        f"{len(competitors)} episodes ({errors} errors) on {tasks} tasks; robots: "
+        f"{', '.join(rows.robots())}; controllers: {len(rows.controllers())}; "
+        f"loop modes: {', '.join(config.loop_modes)}; dt = {config.dt:g} s.",
+        "",
+        _criteria_text(config),
+        "",
+        reference,
+        "",
+        "Statistics: Wilson 95 % intervals for rates; medians with percentile-bootstrap 95 % "
+        f"intervals ({RESAMPLES} resamples, seed 0; endpoints printed to the digits their "
+        "Monte-Carlo error fixes); success compared on the same tasks by the exact McNemar "
+        "test, metrics by the Wilcoxon signed-rank test with the side it favours; Holm across "
+        "the pairs of each table.",
+        "",
+    ]
+
+
+def _robot_section(rows: Rows, robot: str, figures: Sequence[str]) -> list[str]:
+    """One robot: verdict, Pareto figure, failure causes, worst episodes, detailed tables."""
+    out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    pareto = _pareto_path(robot)
+    if pareto in figures:
+        out += [f"![Pareto: {robot}]({pareto})", ""]
+    out += _cause_table(rows, robot)
+    out += _worst_table(rows, robot)
+    out += ["### Success rates and medians", ""]
+    lines, rates = success_table(rows, robot)
+    out += lines + [""]
+    flags = success_flags(rows.select(robot=robot))
+    tests = paired_success(flags)
+    ranking = paired_ranking({n: v[0] for n, v in rates.items()}, tests, higher_is_better=True)
+    out += [_ranking_line(ranking, "success rate", "McNemar test"), ""]
+    out += _mcnemar_table(tests, robot)
+    for metric in (rows.accuracy_metric(), "max_joint_speed"):
+        out += _paired_table(rows, robot, metric)
+    for metric in ("max_error", "max_joint_speed"):
+        out += _sigma_table(rows, robot, metric)
+    return out
+
+
+def _cause_table(rows: Rows, robot: str) -> list[str]:
+    """Episodes failing each criterion, per controller × generator (one can fail several)."""
+    out = [
+        f"### Failure causes on {robot}",
+        "",
+        "Episodes failing each criterion (an episode can fail several): *error* = tolerance "
+        "(achievable tasks) or graceful error bound (unachievable), *speed* = speed bound, "
+        "*position_limit* = a joint left its limits, *blow_up*, *stuck* = stopped early, "
+        "*chatter* (unachievable tasks), *run_error* = never ran.",
+        "",
+        "| controller | generator | episodes | success | " + " | ".join(FAILURE_CAUSES) + " |",
+        "|---|---|---|---|" + "---|" * len(FAILURE_CAUSES),
+    ]
+    generators = list(dict.fromkeys(r["generator"] for r in rows.select(robot=robot)))
+    for name in rows.controllers():
+        for gen in generators:
+            selected = rows.select(controller=name, robot=robot, generator=gen)
+            if not selected:
+                continue
+            wins = sum(1 for r in selected if r["success"])
+            counts = [sum(1 for r in selected if c in r["failure_causes"]) for c in FAILURE_CAUSES]
+            out.append(
+                f"| {name} | {gen} | {len(selected)} | {_pct(wins / len(selected))} | "
+                + " | ".join(str(c) for c in counts)
+                + " |"
+            )
+    out.append("")
+    return out
+
+
+def _worst_table(rows: Rows, robot: str) -> list[str]:
+    """Each controller's worst episode by the headline accuracy, with its drill-down id."""
+    metric = rows.accuracy_metric()
+    out = [
+        f"### Worst episode of each controller on {robot} (by {metric})",
+        "",
+        "`otmm-qp study show DIR --episode ID` prints an episode and writes a config that "
+        "re-runs it.",
+        "",
+        f"| controller | id | task | {metric} [m] | peak joint speed [rad/s] | failure causes |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in rows.controllers():
+        ran = [
+            r for r in rows.select(controller=name, robot=robot) if math.isfinite(_value(r, metric))
+        ]
+        if not ran:
+            continue
+        worst = max(ran, key=lambda r: (_value(r, metric), str(r.get("episode_key"))))
+        task = worst.get("task_id") or f"{worst['generator']}/{worst['task_index']}"
+        out.append(
+            f"| {name} | `{worst['episode_id']}` | {task} | {_fmt(_value(worst, metric))} | "
+            f"{_fmt(_value(worst, 'max_joint_speed'))} | "
+            f"{', '.join(worst['failure_causes']) or 'none'} |"
+        )
+    out.append("")
+    return out
+
+
+def _mcnemar_table(tests: list[PairedRates], robot: str) -> list[str]:
+    out = [
+        f"### Paired success on {robot} (exact McNemar on the same tasks)",
+        "",
+        "| A | B | tasks | A only | B only | both | p | Holm p | favours |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for t in tests:
+        side = t.favoured or "neither"
+        mark = " *" if t.significant else ""
+        out.append(
+            f"| {t.a} | {t.b} | {t.pairs} | {t.a_only} | {t.b_only} | {t.both} | "
+            f"{_p(t.p_value)} | {_p(t.p_holm)}{mark} | {side} |"
+        )
+    out.append("")
+    return out
+
+
+def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
+    """Markdown table of the paired comparisons of ``metric`` on ``robot`` (Holm p < 0.05: *)."""
+    out = [
+        f"### Paired comparisons on {robot}: {metric} (lower wins)",
+        "",
+        "*favours*: the side the signed-rank sums favour (W⁻ > W⁺: A); ⚠ where the strict "
+        "counts or the median difference point the other way.",
+        "",
+        "| A | B | tasks | A lower | ties | A higher | median A−B [95 % CI] | "
+        "Hodges–Lehmann | Wilcoxon p | Holm p | favours |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in paired_for(rows, robot, metric):
+        side = r.favoured or "neither"
+        flags = (" *" if r.significant else "") + ("" if r.consistent else " ⚠")
+        out.append(
+            f"| {r.a} | {r.b} | {r.pairs} | {r.lower} | {r.ties} | {r.higher} | "
+            f"{_interval(r.median_difference)} | {_fmt(r.hodges_lehmann)} | {_p(r.p_value)} | "
+            f"{_p(r.p_holm)} | {side}{flags} |"
+        )
+    out.append("")
+    return out
 
 
 def sigma_curves(
@@ -205,108 +685,6 @@ def sigma_curves(
         )
         curves[name] = (medians, counts)
     return centres, curves
-
-
-def _verdicts(rows: Rows, robot: str) -> list[str]:
-    """Plain-language verdicts from the rankings (ties where intervals overlap)."""
-    lines = []
-    _, rates = success_table(rows, robot)
-    ranking = rank_with_ties(rates, higher_is_better=True)
-    best = [n for n, rank, _ in ranking if rank == 1]
-    lines.append(
-        f"- **{robot}, success rate:** best {', '.join(best)} "
-        f"({'tied: intervals overlap' if len(best) > 1 else 'interval clear of all others'})."
-    )
-    for metric, label, unit in MEDIAN_METRICS[1:3]:
-        intervals = median_intervals(rows, robot, metric)
-        ranking = rank_with_ties(intervals)
-        best = [n for n, rank, _ in ranking if rank == 1]
-        shown = ", ".join(f"{n} {_interval(*intervals[n])} {unit}" for n in best[:4])
-        more = f" (+{len(best) - 4} more)" if len(best) > 4 else ""
-        lines.append(f"- **{robot}, median {label}:** lowest {shown}{more}.")
-    return lines
-
-
-def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> str:
-    """The Markdown report."""
-    out = _overview(config, rows)
-    for robot in rows.robots():
-        out += _verdicts(rows, robot)
-    out.append("")
-    lines, _ = success_table(rows, None)
-    out += ["## All robots", "", *lines, ""]
-    out += [
-        "## Success rate by robot and generator (95 % Wilson CI)",
-        "",
-        *generator_table(rows),
-        "",
-    ]
-    for robot in rows.robots():
-        out += _robot_section(rows, robot)
-    if figures:
-        out += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
-    return "\n".join(out)
-
-
-def _overview(config: StudyConfig, rows: Rows) -> list[str]:
-    """Report title, description, what was run, the success criteria, the verdicts heading."""
-    total = len(rows.rows)
-    errors = sum(1 for r in rows.rows if r.get("status") == "error")
-    tasks = len({(r["robot"], r["generator"], r["task_index"]) for r in rows.rows})
-    criteria = config.success.model_dump()
-    return [
-        f"# Study {config.name}",
-        "",
-        config.description,
-        "",
-        f"{total} episodes ({errors} errors) on {tasks} tasks; robots: "
-        f"{', '.join(rows.robots())}; controllers: {len(rows.controllers())}; "
-        f"loop modes: {', '.join(config.loop_modes)}; dt = {config.dt:g} s.",
-        "",
-        "Success: completed and "
-        + ", ".join(f"{k} = {v}" for k, v in criteria.items() if v not in (None, False))
-        + ". Intervals: Wilson 95 % for rates, percentile bootstrap 95 % (1000 resamples, "
-        "seed 0) for medians.",
-        "",
-        "## Verdicts",
-        "",
-    ]
-
-
-def _robot_section(rows: Rows, robot: str) -> list[str]:
-    """One robot's section: success table, ranking, paired comparisons, σ_min tables."""
-    out = [f"## {robot}", ""]
-    lines, rates = success_table(rows, robot)
-    out += lines + [""]
-    ranking = rank_with_ties(rates, higher_is_better=True)
-    out.append(
-        "Ranking by success rate (= marks a tie: overlapping intervals): "
-        + ", ".join(f"{rank}{'=' if tied else ''} {name}" for name, rank, tied in ranking)
-    )
-    out.append("")
-    for metric in PAIRED_METRICS:
-        out += _paired_table(rows, robot, metric)
-    for metric in ("max_error", "max_joint_speed"):
-        out += _sigma_table(rows, robot, metric)
-    return out
-
-
-def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
-    """Markdown table of the paired comparisons of ``metric`` on ``robot`` (Holm p < 0.05: *)."""
-    out = [
-        f"### Paired comparisons on {robot}: {metric} (lower wins)",
-        "",
-        "| A | B | tasks | A wins | median A−B | Wilcoxon p | Holm p |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for result in paired_for(rows, robot, metric):
-        out.append(
-            f"| {result.a} | {result.b} | {result.pairs} | {_fmt(result.win_rate)} | "
-            f"{_fmt(result.median_difference)} | {_fmt(result.p_value)} | "
-            f"{_fmt(result.p_holm)}{' *' if result.p_holm < 0.05 else ''} |"
-        )
-    out.append("")
-    return out
 
 
 def _sigma_table(rows: Rows, robot: str, metric: str) -> list[str]:
@@ -415,33 +793,112 @@ def _sigma_figure(out: Path, rows: Rows, robot: str) -> str | None:
 
 
 def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
-    """Write ``robot``'s median max error vs median peak joint speed, with CIs; its path."""
+    """Write ``robot``'s median accuracy vs median peak joint speed, with CIs; its path.
+
+    Accuracy is the oracle-relative max error (the reference is the point at 0; symmetric-log
+    axis, since a controller can beat a heuristic reference on some tasks and the relative
+    error can be negative), or the max error (log axis) when no reference is stored.
+    """
     import matplotlib.pyplot as plt
 
-    errors = median_intervals(rows, robot, "max_error")
+    metric = rows.accuracy_metric()
+    errors = median_intervals(rows, robot, metric)
     speeds = median_intervals(rows, robot, "max_joint_speed")
-    figure, ax = plt.subplots(figsize=(5.5, 4.2))
+    figure, ax = plt.subplots(figsize=(6.4, 4.6))
     for name in errors:
         e, s = errors[name], speeds[name]
-        if not (math.isfinite(e[0]) and math.isfinite(s[0])):
+        if not (math.isfinite(e.value) and math.isfinite(s.value)):
+            continue
+        if name == ORACLE:
+            ax.plot(
+                s.value,
+                0.0,
+                marker="*",
+                markersize=14,
+                color="k",
+                linestyle="none",
+                label="oracle (reference)",
+            )
             continue
         ax.errorbar(
-            s[0],
-            e[0],
-            xerr=[[s[0] - s[1]], [s[2] - s[0]]],
-            yerr=[[e[0] - e[1]], [e[2] - e[0]]],
+            s.value,
+            e.value,
+            xerr=[[s.value - s.low], [s.high - s.value]],
+            yerr=[[e.value - e.low], [e.high - e.value]],
             fmt="o",
             capsize=2,
             label=name,
         )
     ax.set_xscale("log")
-    ax.set_yscale("log")
+    if metric == RELATIVE_ERROR:
+        finite = [abs(v.value) for v in errors.values() if math.isfinite(v.value) and v.value]
+        ax.set_yscale("symlog", linthresh=max(1e-6, min(finite) / 2.0) if finite else 1e-4)
+    else:
+        ax.set_yscale("log")
     ax.set_xlabel("median peak joint speed [rad/s]")
-    ax.set_ylabel("median max error [m]")
+    label = "oracle-relative max error" if metric == RELATIVE_ERROR else "max error"
+    ax.set_ylabel(f"median {label} [m]")
     ax.legend(fontsize=6)
-    ax.set_title(f"{robot}: Pareto (lower-left is better)")
-    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.88, wspace=0.3)
+    ax.set_title(f"{robot}: accuracy vs peak speed (lower-left is better; 95 % CIs)")
+    figure.subplots_adjust(left=0.13, right=0.98, bottom=0.12, top=0.9)
     return _save(figure, out, f"pareto-{robot}.png")
+
+
+#: The run report's stylesheet, plus the study report's verdict box.
+_STUDY_CSS = ".verdict{background:#f8fafc;border-left:4px solid #2b5797;padding:.2rem 1rem}"
+
+
+def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
+    """The self-contained HTML page: the Markdown rendered, figures embedded as base64.
+
+    Every name (controllers, robots, generators) reaches the page through
+    :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.markdown.markdown_to_html`).
+    """
+    from otmm_qp.output.markdown import markdown_to_html
+    from otmm_qp.output.report import _CSS
+
+    parts: list[str] = []
+    chunk: list[str] = []
+    in_verdict = False
+
+    def flush() -> None:
+        if chunk:
+            body = markdown_to_html("\n".join(chunk))
+            parts.append(f'<div class="verdict">{body}</div>' if in_verdict else body)
+            chunk.clear()
+
+    for line in markdown.splitlines():
+        image = re.fullmatch(r"!\[(.*)\]\((figures/[^)]+)\)", line.strip())
+        if image:
+            flush()
+            parts.append(_figure_html(out, image.group(2), image.group(1)))
+        elif line.startswith("#"):
+            flush()
+            in_verdict = line.strip() == "### Verdict"
+            chunk.append(line)
+            flush()
+        else:
+            chunk.append(line)
+    flush()
+    title = escape(f"Study {config.name}")
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f"<title>{title}</title><style>{_CSS}{_STUDY_CSS}</style></head><body>\n"
+        + "\n".join(parts)
+        + "\n</body></html>\n"
+    )
+
+
+def _figure_html(out: Path, relative: str, caption: str) -> str:
+    path = ensure_inside(out, out / relative)
+    if not path.is_file():
+        return ""
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    label = escape(caption, "attr")
+    return (
+        f'<figure><img alt="{label}" src="data:image/png;base64,{data}">'
+        f"<figcaption>{label}</figcaption></figure>"
+    )
 
 
 def write_study_report(out: Path) -> tuple[Path, Path]:
@@ -450,8 +907,6 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     Raises:
         OtmmError: ``out`` is not a study directory or holds no episodes.
     """
-    from otmm_qp.output.markdown import markdown_to_html
-
     out = Path(out)
     config, rows = load_rows(out)
     figures = write_figures(out, rows)
@@ -459,19 +914,5 @@ def write_study_report(out: Path) -> tuple[Path, Path]:
     md_path = out / "study_report.md"
     html_path = out / "study_report.html"
     atomic_write_text(md_path, markdown)
-    body = markdown_to_html(
-        "\n".join(line for line in markdown.splitlines() if not line.startswith("!["))
-    )
-    images = "".join(
-        f'<p><img src="{escape(f, "attr")}" alt="{escape(f, "attr")}"></p>' for f in figures
-    )
-    page = (
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>"
-        f"<title>Study {escape(config.name)}</title>"
-        "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
-        "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 5px}"
-        "img{max-width:100%}</style></head><body>"
-        f"{body}{images}</body></html>"
-    )
-    atomic_write_text(html_path, page)
+    atomic_write_text(html_path, render_html(config, markdown, out))
     return html_path, md_path

@@ -91,22 +91,45 @@ class DurationRule(Strict):
     max: float | None = Field(None, gt=0.0)
 
 
+class GracefulCriteria(Strict):
+    """What success means on a task the reference found unachievable (see ``studies/criteria.py``).
+
+    Attributes:
+        error_factor: ``f_e``: bound on ``max_error`` (and orientation) as a multiple of the
+            reference's best [-].
+        max_jump_factor: ``f_c``: no chatter: largest one-step change of any joint's speed as a
+            fraction of its velocity limit [-].
+        return_to_path: Also require ``final_error ≤ max(max_position_error,
+            f_e · reference.final_error)``.
+    """
+
+    error_factor: float = Field(1.5, ge=1.0, allow_inf_nan=False)
+    max_jump_factor: float = Field(0.5, gt=0.0, allow_inf_nan=False)
+    return_to_path: bool = True
+
+
 class SuccessCriteria(Strict):
     """An episode succeeds when it completes and every given bound holds.
 
     Attributes:
-        max_position_error: Bound on ``max_error`` [m].
+        max_position_error: Bound on ``max_error`` [m] (achievable tasks).
         max_orientation_error: Bound on ``max_orientation_error`` [rad] (pose tasks).
-        max_joint_speed: Bound on ``max_joint_speed`` [rad/s].
+        max_joint_speed: Absolute bound on ``max_joint_speed`` = max ‖q̇‖∞ [rad/s]; when given
+            it replaces the per-joint bound ``joint_speed_factor``.
+        joint_speed_factor: Per-joint bound: ``|q̇_j| ≤ factor · q̇_max,j``, the robot's own
+            velocity limits [-] (used when ``max_joint_speed`` is not given).
         no_limit_violation: Require zero position-limit violations.
         no_blow_up: Require ``blow_up`` to be false.
+        graceful: Criteria on tasks whose reference is not achievable.
     """
 
-    max_position_error: float | None = Field(0.01, gt=0.0)
-    max_orientation_error: float | None = Field(None, gt=0.0)
-    max_joint_speed: float | None = Field(None, gt=0.0)
+    max_position_error: float | None = Field(0.01, gt=0.0, allow_inf_nan=False)
+    max_orientation_error: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+    max_joint_speed: float | None = Field(None, gt=0.0, allow_inf_nan=False)
+    joint_speed_factor: float = Field(1.0, gt=0.0, allow_inf_nan=False)
     no_limit_violation: bool = True
     no_blow_up: bool = True
+    graceful: GracefulCriteria = GracefulCriteria()
 
 
 class TimeSeriesConfig(Strict):

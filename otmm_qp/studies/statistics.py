@@ -2,22 +2,44 @@ r"""Statistics of a study: intervals, paired tests, multiple-testing correction,
 
 * Wilson score interval of a success rate ``k/n`` at level ``1 − α``:
   :math:`\frac{\hat p + z^2/2n \pm z\sqrt{\hat p(1-\hat p)/n + z^2/4n^2}}{1 + z^2/n}`.
-* Percentile bootstrap interval of a median (seeded, ``B`` resamples).
-* Paired comparison of controllers A and B on the same tasks: win rate
-  :math:`\frac{\#\{a_i < b_i\} + \frac12\#\{a_i = b_i\}}{n}` (lower metric wins) and the
-  Wilcoxon signed-rank test (:func:`scipy.stats.wilcoxon`), Holm-corrected across pairs.
+* Percentile bootstrap interval of a median (seeded, ``B`` resamples), with the Monte-Carlo
+  standard error of its endpoints (the spread of the endpoints over 10 batches of ``B/10``
+  resamples, divided by :math:`\sqrt{10}`), so a report prints only the digits the
+  resampling has fixed (:func:`significant_digits`).
+* Paired comparison of controllers A and B on the same tasks, :math:`d_i = a_i - b_i`
+  (lower wins): the counts strictly lower (:math:`d_i < 0`), tied (:math:`d_i = 0`) and
+  higher; the median of :math:`d` with its paired bootstrap interval; the Hodges–Lehmann
+  estimate :math:`\operatorname{median}_{i \le j}(d_i + d_j)/2`; the Wilcoxon signed-rank
+  test (:func:`scipy.stats.wilcoxon`, zero differences dropped) and *which side it favours*:
+  A when the rank sum of the negative differences :math:`W^-` exceeds that of the positive
+  ones :math:`W^+`, B when :math:`W^+ > W^-`.
+* Paired success rates: the exact McNemar test, i.e. a two-sided binomial (sign) test of
+  the discordant tasks (A succeeds and B fails vs the reverse) with :math:`p = 1/2`.
+* Holm's step-down correction across the pairs of one family.
+* A ranking from those paired tests: the rank of a controller is 1 + the number of
+  controllers that beat it in a Holm-significant paired test; controllers with the same
+  count share a rank. Nothing else is implied by a shared rank.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
 FloatArray = NDArray[np.float64]
+
+#: Batches used to estimate the Monte-Carlo error of bootstrap endpoints.
+MC_BATCHES = 10
+#: Most significant digits a report prints.
+MOST_DIGITS = 3
+#: Significance level of the paired tests behind rankings and verdicts (after Holm).
+ALPHA = 0.05
 
 
 def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -32,25 +54,84 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def bootstrap_median(
+@dataclass(frozen=True)
+class Interval:
+    """A point value and its bootstrap interval.
+
+    Attributes:
+        value: The statistic of the data (exact, no resampling in it).
+        low: Lower endpoint.
+        high: Upper endpoint.
+        mc_error: Monte-Carlo standard error of the endpoints (the larger of the two); 0 when
+            every batch gave the same endpoints.
+    """
+
+    value: float
+    low: float
+    high: float
+    mc_error: float = 0.0
+
+    def as_tuple(self) -> tuple[float, float, float]:
+        """``(value, low, high)``."""
+        return self.value, self.low, self.high
+
+
+NO_INTERVAL = Interval(math.nan, math.nan, math.nan, math.nan)
+
+
+def significant_digits(value: float, error: float, most: int = MOST_DIGITS) -> int:
+    r"""Significant digits of ``value`` whose last unit is at least twice ``error``.
+
+    :math:`s = \lfloor\log_{10}|v|\rfloor - \lceil\log_{10} 2e\rceil + 1`, clipped to
+    ``[1, most]``; ``most`` when the error is 0 (or the value is 0 / not finite).
+    """
+    if not (math.isfinite(value) and math.isfinite(error)) or value == 0.0 or error <= 0.0:
+        return most
+    digits = math.floor(math.log10(abs(value))) - math.ceil(math.log10(2.0 * error)) + 1
+    return max(1, min(most, digits))
+
+
+def _resampled_medians(data: FloatArray, rng: np.random.Generator, resamples: int) -> FloatArray:
+    """Medians of ``resamples`` resamples with replacement (drawn in blocks of ≤ 2·10⁶ values)."""
+    block = max(1, 2_000_000 // max(1, data.size))
+    medians = np.empty(resamples)
+    for start in range(0, resamples, block):
+        count = min(block, resamples - start)
+        samples = rng.choice(data, size=(count, data.size), replace=True)
+        medians[start : start + count] = np.median(samples, axis=1)
+    return medians
+
+
+def bootstrap_interval(
     values: FloatArray, seed: int = 0, resamples: int = 2000, confidence: float = 0.95
-) -> tuple[float, float, float]:
-    """Median and its percentile-bootstrap interval ``(median, low, high)``; NaNs for no data.
+) -> Interval:
+    """Median and its percentile-bootstrap interval with the endpoints' Monte-Carlo error.
 
     Resamples with replacement (``numpy.random.default_rng(seed)``), takes the medians and
     their ``(1 ± confidence)/2`` quantiles. The values are sorted first, so the interval does
-    not depend on their order (a Dask study stores episodes in completion order).
+    not depend on their order (a Dask study stores episodes in completion order). NaN/inf
+    values are dropped; no finite value gives :data:`NO_INTERVAL`.
     """
     data = np.asarray(values, dtype=float)
     data = np.sort(data[np.isfinite(data)])
     if data.size == 0:
-        return math.nan, math.nan, math.nan
-    rng = np.random.default_rng(seed)
-    samples = rng.choice(data, size=(resamples, data.size), replace=True)
-    medians = np.median(samples, axis=1)
+        return NO_INTERVAL
+    medians = _resampled_medians(data, np.random.default_rng(seed), resamples)
     alpha = (1.0 - confidence) / 2.0
     low, high = np.quantile(medians, [alpha, 1.0 - alpha])
-    return float(np.median(data)), float(low), float(high)
+    error = 0.0
+    if resamples >= 2 * MC_BATCHES:
+        batches = medians[: resamples - resamples % MC_BATCHES].reshape(MC_BATCHES, -1)
+        ends = np.quantile(batches, [alpha, 1.0 - alpha], axis=1)  # (2, batches)
+        error = float(np.max(np.std(ends, axis=1, ddof=1)) / math.sqrt(MC_BATCHES))
+    return Interval(float(np.median(data)), float(low), float(high), error)
+
+
+def bootstrap_median(
+    values: FloatArray, seed: int = 0, resamples: int = 2000, confidence: float = 0.95
+) -> tuple[float, float, float]:
+    """``(median, low, high)`` of :func:`bootstrap_interval`; NaNs for no data."""
+    return bootstrap_interval(values, seed, resamples, confidence).as_tuple()
 
 
 def holm(p_values: list[float]) -> list[float]:
@@ -70,14 +151,19 @@ def holm(p_values: list[float]) -> list[float]:
 
 @dataclass(frozen=True)
 class PairedResult:
-    """A vs B on one metric over the tasks both ran.
+    r"""A vs B on one lower-is-better metric over the tasks both ran, :math:`d = a - b`.
 
     Attributes:
         a: Controller A.
         b: Controller B.
         pairs: Number of paired tasks.
-        win_rate: Fraction of tasks where A is lower (ties count half).
-        median_difference: Median of ``a − b``.
+        lower: Tasks where A is strictly lower (:math:`d < 0`).
+        ties: Tasks where A and B are equal.
+        higher: Tasks where A is strictly higher.
+        median_difference: Median of ``a − b`` and its paired bootstrap interval.
+        hodges_lehmann: Median of the Walsh averages :math:`(d_i + d_j)/2, i \le j`.
+        rank_sum_lower: :math:`W^-`, the signed-rank sum of the tasks where A is lower.
+        rank_sum_higher: :math:`W^+`, the signed-rank sum of the tasks where A is higher.
         p_value: Wilcoxon signed-rank p-value (1 when every difference is zero).
         p_holm: Holm-adjusted p-value (set by :func:`paired_comparisons`).
     """
@@ -85,70 +171,274 @@ class PairedResult:
     a: str
     b: str
     pairs: int
-    win_rate: float
-    median_difference: float
+    lower: int
+    ties: int
+    higher: int
+    median_difference: Interval
+    hodges_lehmann: float
+    rank_sum_lower: float
+    rank_sum_higher: float
     p_value: float
     p_holm: float = math.nan
 
+    @property
+    def favoured(self) -> str | None:
+        """The side the signed-rank test favours (the lower one), or None when W⁻ = W⁺."""
+        if self.rank_sum_lower > self.rank_sum_higher:
+            return self.a
+        if self.rank_sum_higher > self.rank_sum_lower:
+            return self.b
+        return None
 
-def paired_test(a_name: str, b_name: str, a: FloatArray, b: FloatArray) -> PairedResult:
-    """Win rate and Wilcoxon signed-rank test of paired samples (finite pairs only)."""
+    @property
+    def consistent(self) -> bool:
+        """Whether the strict counts and the median difference point to the favoured side too."""
+        side = self.favoured
+        if side is None:
+            return True
+        towards_a = side == self.a
+        counts = self.lower > self.higher if towards_a else self.higher > self.lower
+        median = self.median_difference.value
+        return counts and (median < 0 if towards_a else median > 0)
+
+    @property
+    def significant(self) -> bool:
+        """Holm-adjusted p below :data:`ALPHA`."""
+        return self.p_holm < ALPHA
+
+
+def signed_rank_sums(differences: FloatArray) -> tuple[float, float]:
+    """``(W⁻, W⁺)``: sums of the average ranks of ``|d|`` over the negative / positive ``d``.
+
+    Zero differences are dropped first (Wilcoxon's convention, ``zero_method="wilcox"``).
+    """
+    d = np.asarray(differences, dtype=float)
+    d = d[d != 0.0]
+    if d.size == 0:
+        return 0.0, 0.0
+    ranks = stats.rankdata(np.abs(d))
+    return float(ranks[d < 0].sum()), float(ranks[d > 0].sum())
+
+
+def hodges_lehmann(differences: FloatArray) -> float:
+    r"""One-sample Hodges–Lehmann estimate: :math:`\operatorname{median}_{i \le j}(d_i + d_j)/2`."""
+    d = np.asarray(differences, dtype=float)
+    if d.size == 0:
+        return math.nan
+    upper = np.triu_indices(d.size)
+    return float(np.median((d[upper[0]] + d[upper[1]]) / 2.0))
+
+
+def _finite_pairs(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     keep = np.isfinite(a) & np.isfinite(b)
-    a, b = a[keep], b[keep]
+    return a[keep], b[keep]
+
+
+def paired_test(
+    a_name: str, b_name: str, a: FloatArray, b: FloatArray, seed: int = 0, resamples: int = 2000
+) -> PairedResult:
+    """Counts, effect with its interval and Wilcoxon test of paired samples (finite pairs only)."""
+    a, b = _finite_pairs(a, b)
     n = int(a.size)
     if n == 0:
-        return PairedResult(a_name, b_name, 0, math.nan, math.nan, math.nan)
+        return PairedResult(a_name, b_name, 0, 0, 0, 0, NO_INTERVAL, math.nan, 0.0, 0.0, math.nan)
     difference = a - b
-    wins = float(np.count_nonzero(difference < 0) + 0.5 * np.count_nonzero(difference == 0))
-    if np.all(difference == 0):
+    lower = int(np.count_nonzero(difference < 0))
+    higher = int(np.count_nonzero(difference > 0))
+    if lower + higher == 0:
         p = 1.0
     else:
-        p = float(stats.wilcoxon(a, b, zero_method="wilcox").pvalue)
-    return PairedResult(a_name, b_name, n, wins / n, float(np.median(difference)), p)
+        p = float(stats.wilcoxon(difference, zero_method="wilcox").pvalue)
+    w_minus, w_plus = signed_rank_sums(difference)
+    return PairedResult(
+        a_name,
+        b_name,
+        n,
+        lower,
+        n - lower - higher,
+        higher,
+        bootstrap_interval(difference, seed, resamples),
+        hodges_lehmann(difference),
+        w_minus,
+        w_plus,
+        p,
+    )
+
+
+@dataclass(frozen=True)
+class PairedRates:
+    """Success of A vs B on the same tasks: the exact McNemar (sign) test.
+
+    Attributes:
+        a: Controller A.
+        b: Controller B.
+        pairs: Paired tasks.
+        a_only: Tasks where A succeeds and B fails.
+        b_only: Tasks where B succeeds and A fails.
+        both: Tasks where both succeed.
+        p_value: Two-sided exact binomial p of ``a_only`` in ``a_only + b_only`` at 1/2
+            (1 with no discordant task).
+        p_holm: Holm-adjusted p-value (set by :func:`paired_success`).
+    """
+
+    a: str
+    b: str
+    pairs: int
+    a_only: int
+    b_only: int
+    both: int
+    p_value: float
+    p_holm: float = math.nan
+
+    @property
+    def favoured(self) -> str | None:
+        """The controller with more discordant successes, or None on a tie."""
+        if self.a_only > self.b_only:
+            return self.a
+        if self.b_only > self.a_only:
+            return self.b
+        return None
+
+    @property
+    def significant(self) -> bool:
+        """Holm-adjusted p below :data:`ALPHA`."""
+        return self.p_holm < ALPHA
+
+
+def mcnemar_exact(
+    a_name: str, b_name: str, a: NDArray[np.bool_], b: NDArray[np.bool_]
+) -> PairedRates:
+    """Exact McNemar test of paired success flags (same tasks, same order)."""
+    a = np.asarray(a, dtype=bool)
+    b = np.asarray(b, dtype=bool)
+    a_only = int(np.count_nonzero(a & ~b))
+    b_only = int(np.count_nonzero(~a & b))
+    both = int(np.count_nonzero(a & b))
+    discordant = a_only + b_only
+    p = 1.0 if discordant == 0 else float(stats.binomtest(a_only, discordant, 0.5).pvalue)
+    return PairedRates(a_name, b_name, int(a.size), a_only, b_only, both, p)
+
+
+Result = TypeVar("Result", PairedResult, PairedRates)
+
+
+def with_holm(results: list[Result]) -> list[Result]:
+    """The results with ``p_holm`` set across those with a finite p (others keep NaN)."""
+    tested = [i for i, r in enumerate(results) if math.isfinite(r.p_value)]
+    adjusted = holm([results[i].p_value for i in tested])
+    out = list(results)
+    for i, p in zip(tested, adjusted, strict=True):
+        out[i] = replace(results[i], p_holm=p)
+    return out
+
+
+def _pairs(names: list[str]) -> list[tuple[str, str]]:
+    return [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
 
 
 def paired_comparisons(
-    values: dict[str, dict[tuple[object, ...], float]],
+    values: Mapping[str, Mapping[Any, float]], seed: int = 0, resamples: int = 2000
 ) -> list[PairedResult]:
     """Every pair of controllers on their common tasks, Holm-corrected across the pairs.
 
     Args:
         values: ``controller → {task key → metric value}``.
+        seed: Bootstrap seed of the median differences.
+        resamples: Bootstrap resamples.
     """
-    names = sorted(values)
     results = []
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            common = sorted(set(values[a]) & set(values[b]), key=str)
-            results.append(
-                paired_test(
-                    a,
-                    b,
-                    np.array([values[a][k] for k in common], dtype=float),
-                    np.array([values[b][k] for k in common], dtype=float),
-                )
+    for a, b in _pairs(sorted(values)):
+        common = sorted(set(values[a]) & set(values[b]), key=str)
+        results.append(
+            paired_test(
+                a,
+                b,
+                np.array([values[a][k] for k in common], dtype=float),
+                np.array([values[b][k] for k in common], dtype=float),
+                seed,
+                resamples,
             )
-    tested = [r for r in results if not math.isnan(r.p_value)]
-    adjusted = holm([r.p_value for r in tested])
-    out = []
+        )
+    return with_holm(results)
+
+
+def paired_success(values: Mapping[str, Mapping[Any, bool]]) -> list[PairedRates]:
+    """Exact McNemar test of every pair on their common tasks, Holm-corrected across pairs.
+
+    Args:
+        values: ``controller → {task key → success}``.
+    """
+    results = []
+    for a, b in _pairs(sorted(values)):
+        common = sorted(set(values[a]) & set(values[b]), key=str)
+        results.append(
+            mcnemar_exact(
+                a,
+                b,
+                np.array([values[a][k] for k in common], dtype=bool),
+                np.array([values[b][k] for k in common], dtype=bool),
+            )
+        )
+    return with_holm(results)
+
+
+@dataclass(frozen=True)
+class Ranked:
+    """One controller's place in a paired-test ranking.
+
+    Attributes:
+        name: Controller.
+        rank: 1 + the number of controllers that beat it in a Holm-significant paired test.
+        tied: Another controller has the same rank.
+        beaten_by: The controllers that beat it.
+    """
+
+    name: str
+    rank: int
+    tied: bool
+    beaten_by: tuple[str, ...]
+
+
+def paired_ranking(
+    points: Mapping[str, float],
+    results: list[PairedResult] | list[PairedRates],
+    higher_is_better: bool = False,
+) -> list[Ranked]:
+    """Rank controllers by the Holm-significant paired tests among them.
+
+    Args:
+        points: ``name → point value`` (median or rate), used only to order equal ranks.
+        results: Paired results between those names (see :func:`paired_comparisons`,
+            :func:`paired_success`); a pair counts when ``significant`` and ``favoured`` is set.
+        higher_is_better: Order equal ranks by descending point value.
+
+    Returns:
+        Sorted by rank, then by point value (better first), then name.
+    """
+    beaten: dict[str, list[str]] = {name: [] for name in points}
     for result in results:
-        if math.isnan(result.p_value):
-            out.append(result)
-        else:
-            out.append(
-                PairedResult(
-                    result.a,
-                    result.b,
-                    result.pairs,
-                    result.win_rate,
-                    result.median_difference,
-                    result.p_value,
-                    adjusted[tested.index(result)],
-                )
-            )
-    return out
+        winner = result.favoured
+        if not result.significant or winner is None:
+            continue
+        loser = result.b if winner == result.a else result.a
+        if loser in beaten and winner in points:
+            beaten[loser].append(winner)
+    ranks = {name: 1 + len(set(by)) for name, by in beaten.items()}
+    counts: dict[int, int] = {}
+    for rank in ranks.values():
+        counts[rank] = counts.get(rank, 0) + 1
+    sign = -1.0 if higher_is_better else 1.0
+
+    def order(name: str) -> tuple[int, float, str]:
+        value = points[name]
+        return ranks[name], sign * value if math.isfinite(value) else math.inf, name
+
+    return [
+        Ranked(n, ranks[n], counts[ranks[n]] > 1, tuple(sorted(set(beaten[n]))))
+        for n in sorted(points, key=order)
+    ]
 
 
 def rank_with_ties(
@@ -157,8 +447,7 @@ def rank_with_ties(
     """Rank by point value; a controller's rank is 1 + the number clearly better than it.
 
     "Clearly better" means its interval lies entirely on the better side of this one's
-    interval. Controllers whose intervals overlap thus share a rank (``tied`` = True when
-    another controller has the same rank).
+    interval (an unpaired comparison: the study report ranks by :func:`paired_ranking`).
 
     Args:
         intervals: ``name → (value, low, high)``.

@@ -14,9 +14,14 @@ STUDIES = Path(__file__).resolve().parent.parent / "configs" / "studies"
 
 
 def test_strategies_studies_are_valid_and_hold_our_row() -> None:
-    for name, episodes in (("strategies_planar.yaml", 1496), ("strategies_arms.yaml", 1920)):
+    # Controller episodes, then one offline-reference (oracle) episode per task.
+    for name, episodes, tasks in (
+        ("strategies_planar.yaml", 1496, 136),
+        ("strategies_arms.yaml", 1920, 192),
+    ):
         plan = plan_study(load_study(STUDIES / name), name)
-        assert len(plan.episodes) == episodes
+        assert len(plan.episodes) == episodes + tasks
+        assert sum(1 for e in plan.episodes if e.controller == -1) == tasks
         names = [c.name for c in plan.controllers]
         assert "sigma_lm" in names and "OTMM-directional+sigma_lm" in names
         assert "held_target" in {g.type for g in load_study(STUDIES / name).generators}
@@ -33,7 +38,7 @@ def test_a_tiny_cut_runs_and_gets_a_verdict(tmp_path: Path) -> None:
     ]
     plan = plan_study(parse_study(data))
     outcome = run_study(plan, tmp_path / "study", "tiny", workers=1)
-    assert outcome.ran == 12
+    assert outcome.ran == 12 + 4  # 3 controllers x 4 tasks, and the 4 tasks' references
     report = tmp_path / "verdict.md"
     assert main([str(tmp_path / "study"), "--ours", "sigma_lm", "--out", str(report)]) == 0
     text = report.read_text()

@@ -10,6 +10,25 @@ import re
 
 from otmm_qp.output.escape import escape
 
+#: The style sheet of the run and study reports (one look for both).
+REPORT_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2rem auto;
+max-width:1300px;padding:0 1rem;color:#1d2430;line-height:1.45}
+h1{font-size:1.7rem;border-bottom:2px solid #2b5797;padding-bottom:.3rem}
+h2{font-size:1.3rem;margin-top:2.2rem;color:#2b5797}h3{font-size:1.05rem;margin-top:1.4rem}
+table{border-collapse:collapse;margin:.6rem 0 1rem;font-size:.86rem}
+th,td{border:1px solid #cdd3dc;padding:.28rem .55rem;text-align:right;white-space:nowrap}
+th{background:#eef2f7;text-align:center;white-space:normal}td:first-child,th:first-child{text-align:left}
+tr:nth-child(even) td{background:#fafbfd}td.best{background:#d7f2dc!important;font-weight:700}
+td.bad{color:#a4262c}td.name{white-space:normal;min-width:7rem;max-width:14rem}td.skip{color:#6b7280;font-style:italic;text-align:left}
+.note{color:#4b5563;font-size:.88rem}figure{margin:1rem 0 2rem}
+figure img{max-width:100%;border:1px solid #e5e7eb}figcaption{font-size:.85rem;color:#4b5563}
+.claims{background:#f8fafc;border-left:4px solid #2b5797;padding:.4rem 1rem}
+code{background:#eef2f7;padding:0 .25rem;border-radius:3px}
+#ranking-table td:nth-child(2){text-align:left}.claims table{font-size:.8rem}
+.scroll{overflow-x:auto}
+"""
+
 
 def _inline(text: str) -> str:
     """Escape, then render `` `code` ``, ``$math$`` (as code), ``**bold**`` and ``*em*``."""

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.statistics import holm, paired_test
 from otmm_qp.studies.storage import read_episodes
 
@@ -47,6 +48,9 @@ def _ranks(rate: dict[str, float], error: dict[str, float]) -> dict[str, int]:
 
 def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     """Markdown table and verdict lines of a plants study's episode rows (see the module)."""
+    rows = [
+        r for r in rows if r["controller"] != REFERENCE_NAME
+    ]  # the offline reference: not a plant run
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for row in rows:
         base = str(row["controller"]).rsplit("@", 1)[0]

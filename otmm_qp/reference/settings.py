@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.paper import SIGMA_S
 
 #: Distance [rad or m] from a finite position limit at which a path counts as touching it.
 LIMIT_TOUCH = 1e-6
@@ -37,7 +38,7 @@ class ReferenceSettings:
     position_tolerance: float | None = 0.01
     orientation_tolerance: float | None = None
     speed_limit: float | None = None
-    sigma_s: float = 0.05
+    sigma_s: float = SIGMA_S
     time_budget: float = 30.0
     iterations: int = 6
     minimax_rounds: int = 1

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.report import Rows, load_rows
 from otmm_qp.studies.statistics import PairedResult, holm, paired_test
 
@@ -81,6 +82,8 @@ def pareto_front(points: dict[str, tuple[float, ...]]) -> list[str]:
 def _values(rows: Rows, robot: str, generator: str, metric: str) -> dict[str, dict[object, float]]:
     out: dict[str, dict[object, float]] = {}
     for row in rows.select(robot=robot, generator=generator):
+        if row["controller"] == REFERENCE_NAME:  # the offline reference is not an online competitor
+            continue
         value = row.get(metric)
         number = float(value) if isinstance(value, int | float) else math.nan
         if row.get("status") == "error":

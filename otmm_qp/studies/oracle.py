@@ -20,6 +20,8 @@ from otmm_qp.tasks.generator import Task
 
 #: Controller index and loop mode of the reference's episode.
 ORACLE = -1
+#: The reference rows' ``controller`` and ``backend`` names (the data contract with the report).
+REFERENCE_NAME = "oracle"
 OFFLINE = "offline"
 
 
@@ -40,9 +42,9 @@ def reference_settings(config: StudyConfig) -> ReferenceSettings:
 def oracle_fields(config: StudyConfig) -> dict[str, Any]:
     """The columns that name the reference as a controller."""
     return {
-        "controller": "oracle",
+        "controller": REFERENCE_NAME,
         "filters": "none",
-        "backend": "oracle",
+        "backend": REFERENCE_NAME,
         "controller_params": json.dumps(config.reference.model_dump(mode="json"), sort_keys=True),
         "loop_mode": OFFLINE,
     }

@@ -34,6 +34,7 @@ from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
 from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
     ALPHA,
@@ -52,7 +53,7 @@ from otmm_qp.studies.statistics import (
 from otmm_qp.studies.storage import read_study_folder
 
 #: The reference rows' controller name (the data contract with the oracle).
-ORACLE = "oracle"
+ORACLE = REFERENCE_NAME
 #: Oracle-relative error column computed for every controller row [m].
 RELATIVE_ERROR = "oracle_relative_error"
 #: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
@@ -854,8 +855,7 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
     Every name (controllers, robots, generators) reaches the page through
     :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.markdown.markdown_to_html`).
     """
-    from otmm_qp.output.markdown import markdown_to_html
-    from otmm_qp.output.report import _CSS
+    from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
 
     parts: list[str] = []
     chunk: list[str] = []
@@ -883,7 +883,7 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
     title = escape(f"Study {config.name}")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-        f"<title>{title}</title><style>{_CSS}{_STUDY_CSS}</style></head><body>\n"
+        f"<title>{title}</title><style>{REPORT_CSS}{_STUDY_CSS}</style></head><body>\n"
         + "\n".join(parts)
         + "\n</body></html>\n"
     )

@@ -21,7 +21,7 @@ from otmm_qp.config.base import PluginSpec
 from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
-from otmm_qp.studies.oracle import OFFLINE, ORACLE
+from otmm_qp.studies.oracle import OFFLINE, ORACLE, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.studies.task_ids import check_entries, seed_name
 from otmm_qp.tasks.generator import TaskGenerationError, task_seed
@@ -302,7 +302,7 @@ def oracle_key(config: StudyConfig, robot: int, generator: int, index: int, seed
         "generator": {"type": gen.type, "params": gen.params},
         "seed": seed,
         "task_index": index,
-        "controller": "oracle",
+        "controller": REFERENCE_NAME,
         "dt": config.dt,
         "duration": config.duration.model_dump(mode="json"),
         "metrics": config.metrics.model_dump(mode="json"),

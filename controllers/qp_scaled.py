@@ -161,11 +161,12 @@ class ScaledQpBackend(BoxQpBackend):
         problem = build_scaled_qp(state, xdot, bounds, self.regularization)
         self.session.load(problem)
         solution = self.session.solve()
-        settled = None if solution.x is None else clip_into_box(solution.x[:-1], bounds, SOLVER_TOL)
-        if settled is None or not np.isfinite(solution.x[-1]):
+        x = solution.x
+        settled = None if x is None else clip_into_box(x[:-1], bounds, SOLVER_TOL)
+        if x is None or settled is None or not np.isfinite(x[-1]):
             detail = f"solver {self.solver!r} found no (q̇, α) with J q̇ = α ẋ inside the box"
             return self._fail(step, detail, (problem, solution), False)
-        alpha = float(np.clip(solution.x[-1], 0.0, 1.0))
+        alpha = float(np.clip(x[-1], 0.0, 1.0))
         qdot, active = settled
         status = Status.STUCK if alpha < self.stuck_threshold else (
             Status.BOUNDED if active else Status.OK

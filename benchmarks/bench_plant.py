@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 
 from otmm_qp.conditioning import build_conditioning  # noqa: E402
 from otmm_qp.controller import Controller  # noqa: E402
+from otmm_qp.exceptions import ConfigError  # noqa: E402
 from otmm_qp.filters.otmm import OtmmFilter  # noqa: E402
 from otmm_qp.plants import build_plant  # noqa: E402
 from otmm_qp.robots.pinocchio_arm import PinocchioArm  # noqa: E402
@@ -77,7 +78,11 @@ def pipelines(robot: PinocchioArm, q0: np.ndarray) -> dict[str, Callable[[np.nda
 
         steps[f"plant {name}"] = step
     for name, spec in STAGES.items():
-        stage = build_conditioning(spec)
+        try:
+            stage = build_conditioning(spec)
+        except ConfigError as error:  # an optional library (Ruckig) missing: say so, time the rest
+            print(f"skipped stage {name}: {error}")
+            continue
         stage.reset(robot, DT)
         steps[f"stage {name}"] = lambda qdot, stage=stage: stage.apply(q0, qdot)  # noqa: E731
     return steps

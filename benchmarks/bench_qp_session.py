@@ -80,7 +80,7 @@ def pink_step(robot: PinocchioArm, qs: FloatArray, xdots: FloatArray, prevs: Flo
     Pink computes its own kinematics from ``state.q``; the states are built before timing, so
     pink's row does not pay for our ``KinematicState.compute`` (the otmm-qp rows do).
     """
-    from otmm_qp.peers.pink_backend import PinkBackend
+    from otmm_qp_controllers.peers.pink_backend import PinkBackend
 
     adapter = PinkBackend(solver="daqp")
     adapter.bind(robot, DT)

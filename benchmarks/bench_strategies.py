@@ -32,7 +32,7 @@ from otmm_qp_controllers.jparse import JParseBackend  # noqa: E402
 from otmm_qp_controllers.manipulability import ManipulabilityBackend  # noqa: E402
 from otmm_qp_controllers.pinv import PseudoInverseBackend  # noqa: E402
 from otmm_qp_controllers.qp import QpBackend  # noqa: E402
-from otmm_qp_controllers.qp_manipulability import ManipulabilityQpBackend  # noqa: E402
+from otmm_qp_controllers.qp.manipulability import ManipulabilityQpBackend  # noqa: E402
 from otmm_qp_controllers.sigma_lm import SigmaLevenbergMarquardtBackend  # noqa: E402
 from otmm_qp_controllers.sns import SnsBackend  # noqa: E402
 from otmm_qp_controllers.task_priority import TaskPriorityBackend  # noqa: E402

@@ -52,7 +52,7 @@ GROUPS = (
 
 
 @dataclass(frozen=True)
-class PluginSpec:
+class EntryPointSpec:
     """Where a plugin comes from.
 
     Attributes:
@@ -90,7 +90,7 @@ def _base_class(group: str) -> type | None:
 
         return Trajectory
     if group == TASK_GENERATORS:
-        from otmm_qp.tasks.generator import TaskGenerator
+        from otmm_qp.scenarios.generator import TaskGenerator
 
         return TaskGenerator
     if group == LIMITS:
@@ -108,16 +108,16 @@ def _base_class(group: str) -> type | None:
     return None
 
 
-def specs(group: str) -> dict[str, PluginSpec]:
+def specs(group: str) -> dict[str, EntryPointSpec]:
     """Registered plugins of a group, by name.
 
     Raises:
         PluginValidationError: Two distributions register the same name.
     """
-    found: dict[str, PluginSpec] = {}
+    found: dict[str, EntryPointSpec] = {}
     for entry in metadata.entry_points(group=group):
         dist = entry.dist.name if entry.dist is not None else "?"
-        spec = PluginSpec(group, entry.name, entry.value, dist)
+        spec = EntryPointSpec(group, entry.name, entry.value, dist)
         previous = found.get(entry.name)
         if previous is not None and previous.value != spec.value:
             raise PluginValidationError(

@@ -10,7 +10,7 @@ from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.qp import QpBackend
-from otmm_qp_controllers.qp_problem import active_bound, clip_into_box
+from otmm_qp_controllers.qp.formulation import active_bound, clip_into_box
 
 TOL = 1e-9
 finite = st.floats(-5.0, 5.0, allow_nan=False)

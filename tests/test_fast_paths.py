@@ -34,9 +34,9 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp_controllers.pinv import PseudoInverseBackend
 from otmm_qp_controllers.qp import QpBackend, QpStep
-from otmm_qp_controllers.qp_problem import BIG, QpProblem, build_qp
-from otmm_qp_controllers.qp_solvers import SESSIONS, make_session, solve_with_qpsolvers
-from otmm_qp_controllers.qp_solvers.session import conflicting_bounds
+from otmm_qp_controllers.qp.formulation import BIG, QpProblem, build_qp
+from otmm_qp_controllers.qp.solvers import SESSIONS, make_session, solve_with_qpsolvers
+from otmm_qp_controllers.qp.solvers.session import conflicting_bounds
 
 DT = 0.01  # [s]
 PANDA = PinocchioArm(name="panda", task="pose")

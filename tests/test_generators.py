@@ -9,10 +9,10 @@ from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
-from otmm_qp.tasks.generator import TaskGenerationError, task_seed
-from otmm_qp.tasks.reach import true_reach
-from otmm_qp.tasks.search import base_position, descend_sigma_min, position_of, sigma_min_at
-from otmm_qp.tasks.singular import SingularSearch
+from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
+from otmm_qp.scenarios.reach import true_reach
+from otmm_qp.scenarios.search import base_position, descend_sigma_min, position_of, sigma_min_at
+from otmm_qp.scenarios.singular import SingularSearch
 
 GENERATORS = ("near_singular", "joint_path", "beyond_reach", "boundary", "random_reachable")
 

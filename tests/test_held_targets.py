@@ -12,7 +12,7 @@ from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots import PlanarArm
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.runner import run_suite
-from otmm_qp.tasks.held_target import HeldTargetGenerator
+from otmm_qp.scenarios.held_target import HeldTargetGenerator
 from otmm_qp.trajectories.held_targets import HeldTargetsTrajectory
 
 

@@ -92,3 +92,31 @@ def test_one_safe_output_module_and_one_home_for_sigma_s() -> None:
     from otmm_qp.paper import SIGMA_S
 
     assert DEFAULT_SIGMA_S == MetricSettings().sigma_s == SIGMA_S == 0.05
+
+
+def test_the_core_never_imports_the_built_in_backends() -> None:
+    """Built-in backends live in ``controllers/`` and reach the core only through entry points,
+    exactly as a third party's do; ``otmm_qp/backends/`` holds the interface alone."""
+    offenders = {
+        str(p.relative_to(ROOT)): sorted(
+            m for m in _imports(p, module_level=False) if m.startswith("otmm_qp_controllers")
+        )
+        for p in PACKAGE.rglob("*.py")
+    }
+    assert {k: v for k, v in offenders.items() if v} == {}
+    assert sorted(p.name for p in (PACKAGE / "backends").glob("*.py")) == [
+        "__init__.py",
+        "backend.py",
+    ]
+    assert not (PACKAGE / "peers").exists()
+
+
+def test_controllers_import_each_other_relatively() -> None:
+    """Inside ``controllers/`` imports are relative, so mypy checks the package as one unit
+    (an absolute ``otmm_qp_controllers`` import is unresolvable under an editable install)."""
+    absolute = [
+        str(p.relative_to(ROOT))
+        for p in (ROOT / "controllers").rglob("*.py")
+        if any(m.startswith("otmm_qp_controllers") for m in _imports(p, module_level=False))
+    ]
+    assert absolute == []

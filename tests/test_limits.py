@@ -29,7 +29,7 @@ from otmm_qp.limits import (
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.qp import QpBackend, QpStep
-from otmm_qp_controllers.qp_scaled import ScaledQpBackend
+from otmm_qp_controllers.qp.scaled import ScaledQpBackend
 from otmm_qp_controllers.sns import SnsBackend
 from tests.braking_limit import BrakingDistanceLimit
 from tests.test_plugins import patch_entry_points

@@ -20,8 +20,8 @@ import pytest
 from otmm_qp import registry
 from otmm_qp.config.load import parse_config
 from otmm_qp.exceptions import RobotLoadError
-from otmm_qp.peers import models
 from otmm_qp.robots import PeerDescription, Robot
+from otmm_qp.robots import peer_models as models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, TaskKind
@@ -29,9 +29,9 @@ from otmm_qp.runner import run_suite
 from otmm_qp.state import KinematicState
 
 PEERS = {
-    "pink": "otmm_qp.peers.pink_backend:PinkBackend",
-    "mink": "otmm_qp.peers.mink_backend:MinkBackend",
-    "drake": "otmm_qp.peers.drake_backend:DrakeBackend",
+    "pink": "otmm_qp_controllers.peers.pink_backend:PinkBackend",
+    "mink": "otmm_qp_controllers.peers.mink_backend:MinkBackend",
+    "drake": "otmm_qp_controllers.peers.drake_backend:DrakeBackend",
 }
 PEER_MODULES = {"pink": "pink", "mink": "mink", "drake": "pydrake"}
 #: The third-party planar arm, registered as a robot plugin by :func:`plugins`.
@@ -243,9 +243,9 @@ def damping(peer: str) -> dict[str, float]:
 
 def one_step(robot: Robot, theta: FloatArray, peer: str, weight: FloatArray | None = None) -> Any:
     """``(peer q̇, qp q̇)`` [rad/s] on one step at ``θ`` with a small task velocity."""
-    from otmm_qp.peers.drake_backend import DrakeBackend
-    from otmm_qp.peers.mink_backend import MinkBackend
-    from otmm_qp.peers.pink_backend import PinkBackend
+    from otmm_qp_controllers.peers.drake_backend import DrakeBackend
+    from otmm_qp_controllers.peers.mink_backend import MinkBackend
+    from otmm_qp_controllers.peers.pink_backend import PinkBackend
 
     peers: dict[str, Any] = {"pink": PinkBackend, "mink": MinkBackend, "drake": DrakeBackend}
     w = np.ones(robot.task_dim) if weight is None else weight

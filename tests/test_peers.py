@@ -14,7 +14,7 @@ from otmm_qp.config.load import parse_config
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ConfigError, PeerUnavailable, RobotLoadError
 from otmm_qp.output.report import read_summary
-from otmm_qp.peers import models
+from otmm_qp.robots import peer_models as models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.runner import run_suite
@@ -22,9 +22,9 @@ from otmm_qp.simulation import Episode, simulate
 from otmm_qp.state import KinematicState
 
 PEER_ENTRY_POINTS = {
-    "pink": "otmm_qp.peers.pink_backend:PinkBackend",
-    "mink": "otmm_qp.peers.mink_backend:MinkBackend",
-    "drake": "otmm_qp.peers.drake_backend:DrakeBackend",
+    "pink": "otmm_qp_controllers.peers.pink_backend:PinkBackend",
+    "mink": "otmm_qp_controllers.peers.mink_backend:MinkBackend",
+    "drake": "otmm_qp_controllers.peers.drake_backend:DrakeBackend",
 }
 PEER_MODULES = {"pink": "pink", "mink": "mink", "drake": "pydrake"}
 #: Stated tolerance: a peer's RMS / max position error may exceed qp's by at most this [m]
@@ -128,7 +128,7 @@ def test_unresolvable_package_uri_names_the_uri() -> None:
 def test_missing_peer_is_skipped_with_hint(
     peer_entry_points: None, monkeypatch: pytest.MonkeyPatch, tmp_path: Any
 ) -> None:
-    import otmm_qp.peers.peer_backend as peer_backend
+    import otmm_qp_controllers.peers.peer_backend as peer_backend
 
     real_import = peer_backend.importlib.import_module
 
@@ -282,7 +282,7 @@ def test_pink_limit_warning_is_dropped_and_nothing_else(
     pytest.importorskip("pink")
     import logging
 
-    from otmm_qp.peers.pink_backend import PINK_LIMIT_WARNING, PinkBackend
+    from otmm_qp_controllers.peers.pink_backend import PINK_LIMIT_WARNING, PinkBackend
 
     PinkBackend(solver="daqp").bind(PlanarArm([1.0, 0.8]), 0.01)
     with caplog.at_level(logging.WARNING):

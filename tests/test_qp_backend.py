@@ -17,8 +17,8 @@ from otmm_qp.state import KinematicState
 from otmm_qp_controllers.damping import damped_least_squares
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend
 from otmm_qp_controllers.qp import QpBackend, QpStep, available_solvers
-from otmm_qp_controllers.qp_problem import QpProblem
-from otmm_qp_controllers.qp_solvers import Solution, solve_with_qpsolvers
+from otmm_qp_controllers.qp.formulation import QpProblem
+from otmm_qp_controllers.qp.solvers import Solution, solve_with_qpsolvers
 
 DT = 0.01
 PANDA = PinocchioArm(name="panda", task="pose")

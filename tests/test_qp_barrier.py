@@ -16,8 +16,8 @@ from otmm_qp.runner import prepare_experiment, run_experiment
 from otmm_qp.singularity import sigma_min_gradient, sigma_min_rate
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.qp import QpBackend, QpStep
-from otmm_qp_controllers.qp_problem import BIG
-from otmm_qp_controllers.qp_solvers import solve_with_qpsolvers
+from otmm_qp_controllers.qp.formulation import BIG
+from otmm_qp_controllers.qp.solvers import solve_with_qpsolvers
 
 DT = 0.01  # [s]
 UR5 = PinocchioArm(name="ur5", task="pose")

@@ -12,7 +12,7 @@ from otmm_qp.robots import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp_controllers.manipulability import manipulability, manipulability_gradient
 from otmm_qp_controllers.qp import QpBackend
-from otmm_qp_controllers.qp_manipulability import ManipulabilityQpBackend
+from otmm_qp_controllers.qp.manipulability import ManipulabilityQpBackend
 
 LIMITS = [[-2.5, 2.5], [-2.0, 2.0], [-2.0, 2.0], [-2.0, 2.0]]
 

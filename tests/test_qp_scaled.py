@@ -8,10 +8,10 @@ import pytest
 from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.qp_base import QpStep
-from otmm_qp_controllers.qp_problem import QpProblem
-from otmm_qp_controllers.qp_scaled import SCALED_SOLVERS, ScaledQpBackend
-from otmm_qp_controllers.qp_solvers import solve_with_qpsolvers
+from otmm_qp_controllers.qp.box_backend import QpStep
+from otmm_qp_controllers.qp.formulation import QpProblem
+from otmm_qp_controllers.qp.scaled import SCALED_SOLVERS, ScaledQpBackend
+from otmm_qp_controllers.qp.solvers import solve_with_qpsolvers
 
 DT = 0.01
 UR5 = PinocchioArm(name="ur5", task="pose")

@@ -10,10 +10,10 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.reference import ReferenceSettings, solve_reference
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
+from otmm_qp.scenarios.reach import true_reach
+from otmm_qp.scenarios.search import base_position, position_of, random_coordinates
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.task_ids import entry_label, seed_name, task_id
-from otmm_qp.tasks.reach import true_reach
-from otmm_qp.tasks.search import base_position, position_of, random_coordinates
 
 
 @pytest.fixture(scope="module", params=["ur5", "panda"])

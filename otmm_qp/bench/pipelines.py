@@ -5,8 +5,8 @@ What one *control step* is, per pipeline (everything from the configuration to `
 * otmm-qp: ``KinematicState.compute(robot, q)`` (kinematics + the one SVD) and
   ``Controller.step(state, ẋ, q̇_prev)`` (filters + backend) — the step of ``otmm-qp run``;
 * pink, mink, Drake: the public ``solve(state, ẋ, q̇_prev)`` of the registered adapter
-  (:mod:`otmm_qp.peers`) with its default parameters, as an experiment runs it: the peer's
-  own configuration update, task and limits, and its QP (the SVD of ``state`` is unused).
+  (:mod:`otmm_qp_controllers.peers`) with its default parameters, as an experiment runs it:
+  the peer's own configuration update, task and limits, and its QP (the SVD of ``state`` is unused).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """YAML configuration: one strict base, shared records, one hardened loader for every file."""
 
-from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
+from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.load import (
     DEFAULT_CONFIG,
     embedded_config_path,
@@ -19,7 +19,7 @@ __all__ = [
     "ExperimentConfig",
     "LoopSettings",
     "MetricsConfig",
-    "PluginSpec",
+    "PluginConfig",
     "Strict",
     "SuiteConfig",
     "TaskWeight",

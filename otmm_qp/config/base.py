@@ -18,7 +18,7 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
-class PluginSpec(BaseModel):
+class PluginConfig(BaseModel):
     """``{type: NAME, **params}``: a registered plugin and its parameters.
 
     The parameters are checked against the plugin's constructor when it is built

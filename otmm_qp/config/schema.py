@@ -33,7 +33,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
+from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.output.paths import RESERVED_NAMES, safe_name
 from otmm_qp.paper import SIGMA_S
@@ -44,7 +44,7 @@ __all__ = [
     "ExperimentConfig",
     "LoopMode",
     "MetricsConfig",
-    "PluginSpec",
+    "PluginConfig",
     "SuiteConfig",
     "check_file_name",
 ]
@@ -70,7 +70,7 @@ class MetricsConfig(Strict):
 
 
 #: A plant: one stage ``{type: lag, tau: 0.02}`` or a list applied in order (``otmm_qp.plants``).
-PlantConfig = PluginSpec | list[PluginSpec]
+PlantConfig = PluginConfig | list[PluginConfig]
 
 
 class ControllerConfig(Strict):
@@ -81,9 +81,9 @@ class ControllerConfig(Strict):
     """
 
     name: str = Field(min_length=1)
-    filters: list[PluginSpec] = Field(default_factory=list)
-    backend: PluginSpec
-    conditioning: list[PluginSpec] = Field(default_factory=list)
+    filters: list[PluginConfig] = Field(default_factory=list)
+    backend: PluginConfig
+    conditioning: list[PluginConfig] = Field(default_factory=list)
     plant: PlantConfig | None = None
 
 
@@ -92,9 +92,9 @@ class ExperimentConfig(Strict):
 
     name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]*$")
     description: str = ""
-    robot: PluginSpec
+    robot: PluginConfig
     q0: list[float]
-    trajectory: PluginSpec
+    trajectory: PluginConfig
     controllers: list[ControllerConfig] = Field(min_length=1)
     duration: float | None = Field(None, gt=0.0)
     dt: float | None = Field(None, gt=0.0)

@@ -1,6 +1,6 @@
 r"""The arm simulated by MuJoCo: rigid-body dynamics, gravity, joint servos with torque limits.
 
-The MuJoCo model is the one the peers use (:func:`otmm_qp.peers.models.mujoco_spec`: the
+The MuJoCo model is the one the peers use (:func:`otmm_qp.robots.peer_models.mujoco_spec`: the
 robot's URDF, inertias from its ``<inertial>`` elements; planar arms their generated MJCF).
 Each joint gets a position servo fed by the integrated command plus a velocity servo on the
 command (two MuJoCo joint actuators) and, by default, gravity compensation routed through
@@ -111,7 +111,7 @@ class MujocoPlant(Plant):
 
     def _build(self, robot: Robot) -> None:
         """Compile the robot's MuJoCo model with its servos and torque limits (once per robot)."""
-        from otmm_qp.peers import models
+        from otmm_qp.robots import peer_models as models
 
         mujoco = self._mujoco
         try:

@@ -161,7 +161,7 @@ def _recorded_robot(record: Path) -> Robot:
         ConfigError: A symlink, a file over :data:`MAX_RECORD_BYTES`, not a JSON object with a
             string ``type`` and an object ``params``, or parameters the robot refuses.
     """
-    from otmm_qp.config.schema import PluginSpec
+    from otmm_qp.config.schema import PluginConfig
     from otmm_qp.runner.build import load_robot as build_robot
 
     field = str(record)
@@ -179,7 +179,7 @@ def _recorded_robot(record: Path) -> Robot:
     params = spec.get("params") or {}
     if not isinstance(params, dict) or "type" in params:
         raise ConfigError(f"{field}: params", "must be an object of robot parameters")
-    return build_robot(PluginSpec(type=spec["type"], **params), f"{field}: robot")
+    return build_robot(PluginConfig(type=spec["type"], **params), f"{field}: robot")
 
 
 def _short(error: BaseException) -> str:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp import registry
-from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, PluginSpec
+from otmm_qp.config.schema import ControllerConfig, ExperimentConfig, PluginConfig
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import (
     ConfigError,
@@ -132,7 +132,7 @@ def captured_stderr() -> Iterator[None]:
         sys.stderr.write(text.decode("utf-8", "replace"))
 
 
-def load_robot(spec: PluginSpec, field: str) -> Robot:
+def load_robot(spec: PluginConfig, field: str) -> Robot:
     """Build a robot block; numeric warnings (e.g. overflowing link lengths) become a ConfigError.
 
     What C libraries (urdfdom) print while loading is held back when loading fails.

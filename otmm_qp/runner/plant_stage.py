@@ -24,7 +24,7 @@ def build_stage(config: ControllerConfig) -> tuple[PlantChain, Conditioning]:
 
 
 def plant_record(spec: Any) -> Any:
-    """A plant config (a :class:`PluginSpec`, a list of them, or None) as plain data."""
+    """A plant config (a :class:`PluginConfig`, a list of them, or None) as plain data."""
     if spec is None:
         return None
     if isinstance(spec, list):

@@ -18,6 +18,7 @@ from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.scenarios.generator import Task, TaskGenerator
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
@@ -26,7 +27,6 @@ from otmm_qp.studies.oracle import ORACLE, failed_columns, oracle_columns, oracl
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.spec import plant_name
 from otmm_qp.studies.task_ids import entry_label, task_id
-from otmm_qp.tasks.generator import Task, TaskGenerator
 
 #: Metrics that measure wall-clock time: they differ between runs and executors.
 TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")

@@ -15,8 +15,8 @@ from typing import Any
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
 from otmm_qp.reference import REFERENCE_COLUMNS, ReferenceSettings, as_run, solve_reference
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.schema import StudyConfig
-from otmm_qp.tasks.generator import Task
 
 #: Controller index and loop mode of the reference's episode.
 ORACLE = -1

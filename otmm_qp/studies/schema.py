@@ -39,7 +39,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from otmm_qp.config.base import PluginSpec, Strict, TaskWeight
+from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.config.schema import ControllerConfig, MetricsConfig, PlantConfig
 
@@ -48,7 +48,7 @@ class StudyRobot(Strict):
     """A robot of the study: a label, the robot plugin and an optional task weight."""
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
-    robot: PluginSpec
+    robot: PluginConfig
     task_weight: TaskWeight = None
 
 

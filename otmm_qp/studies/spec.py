@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 
 from otmm_qp import registry
-from otmm_qp.config.base import PluginSpec
+from otmm_qp.config.base import PluginConfig
 from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
+from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
 from otmm_qp.studies.oracle import OFFLINE, ORACLE, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.studies.task_ids import check_entries, seed_name
-from otmm_qp.tasks.generator import TaskGenerationError, task_seed
 
 
 def parse_study(data: Any, source: str = "study") -> StudyConfig:
@@ -113,7 +113,7 @@ def _grid_target(spec: StudyController, key: str, field: str) -> tuple[str, int 
     if len(parts) != 1:
         raise ConfigError(f"{field}.grid.{key}", "use NAME, backend.NAME or filters.INDEX.NAME")
     owners: list[tuple[str, int | None]] = []
-    blocks: list[tuple[str, int | None, PluginSpec, str]] = [
+    blocks: list[tuple[str, int | None, PluginConfig, str]] = [
         ("filters", j, f, registry.FILTERS) for j, f in enumerate(spec.filters)
     ]
     blocks.append(("backend", None, spec.backend, registry.BACKENDS))

@@ -16,7 +16,7 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task
+from otmm_qp.scenarios.generator import Task
 from otmm_qp.trajectories.trajectory import Trajectory
 
 #: Largest distance [task units] between the run's start pose and the task's start.

@@ -10,10 +10,10 @@ import numpy as np
 from otmm_qp.backends.backend import BackendOutput, damping_weight
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.manipulability import manipulability_gradient
-from otmm_qp_controllers.qp import DEFAULT_REGULARIZATION, QpBackend
 
-from .secondary_tasks import finite_number
+from ..manipulability import manipulability_gradient
+from ..secondary_tasks import finite_number
+from .backend import DEFAULT_REGULARIZATION, QpBackend
 
 
 class ManipulabilityQpBackend(QpBackend):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from otmm_qp_controllers.qp_solvers.problem import QpProblem
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+from .problem import QpProblem
+from .session import QpSession, Solution
 
 #: Absolute KKT-residual tolerance: the error on x is about EPS / λ_min(P).
 EPS_ABS = 1e-10

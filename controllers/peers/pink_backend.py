@@ -11,12 +11,13 @@ import pinocchio as pin
 
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.limits import LimitSpec
-from otmm_qp.peers.models import PinocchioPeerModel
-from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
-from otmm_qp.peers.velocity_task import VelocityTaskData
+from otmm_qp.robots.peer_models import PinocchioPeerModel
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+
+from .peer_backend import PeerBackend, peer_limits, require
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -42,7 +43,7 @@ class PinkBackend(PeerBackend):
 
     Each step pink solves (``Δq = q̇·dt``, ``e = −ẋ·dt``, ``W`` the task weight, ``J`` the
     commanded rows of the world-aligned frame Jacobian; see
-    :mod:`otmm_qp.peers.velocity_task`) — ``qp``'s problem with ``λ = μ``, ``g`` = ``limit_gain``:
+    :mod:`otmm_qp.robots.velocity_task`) — ``qp``'s problem with ``λ = μ``, ``g`` = ``limit_gain``:
 
     .. math::
         \min_{\Delta q}\ \|W(J\Delta q + e)\|^2 + \mu\|\Delta q\|^2
@@ -50,7 +51,7 @@ class PinkBackend(PeerBackend):
 
     The model is the one the robot's peer description gives (a :class:`PinocchioArm`'s own
     reduced ``pin.Model``) or one parsed from the description's URDF (e.g. the URDF generated
-    for a :class:`PlanarArm`); see :class:`~otmm_qp.peers.models.PinocchioPeerModel`.
+    for a :class:`PlanarArm`); see :class:`~otmm_qp.robots.peer_models.PinocchioPeerModel`.
 
     Args:
         solver: qpsolvers backend name, e.g. ``daqp``, ``proxqp``, ``osqp``, ``quadprog``.

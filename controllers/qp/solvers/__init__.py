@@ -14,16 +14,17 @@ from collections.abc import Callable
 import qpsolvers
 
 from otmm_qp.exceptions import SolverNotFound
-from otmm_qp_controllers.qp_solvers.daqp_session import DaqpSession
-from otmm_qp_controllers.qp_solvers.osqp_session import OsqpSession
-from otmm_qp_controllers.qp_solvers.problem import BIG, QpProblem
-from otmm_qp_controllers.qp_solvers.proxsuite_session import ProxsuiteSession
-from otmm_qp_controllers.qp_solvers.qpsolvers_session import (
+
+from .daqp_session import DaqpSession
+from .osqp_session import OsqpSession
+from .problem import BIG, QpProblem
+from .proxsuite_session import ProxsuiteSession
+from .qpsolvers_session import (
     SOLVER_OPTIONS,
     QpsolversSession,
     solve_with_qpsolvers,
 )
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+from .session import QpSession, Solution
 
 #: Persistent sessions by name, registered when their package is importable.
 SESSIONS: dict[str, Callable[[], QpSession]] = {}

@@ -10,7 +10,7 @@ with ``μ = λ²`` (λ the DLS damping factor) and the box ``[lb; ub]`` of the s
 :meth:`~QpFormulation.unconstrained` is the minimiser without bounds from the shared SVD (the
 fast path) and :meth:`~QpFormulation.build` writes the QP into preallocated arrays
 (:func:`build_qp`). :func:`active_bound` and :func:`clip_into_box` read a solution against the
-box. Solving lives in :mod:`otmm_qp_controllers.qp_solvers`.
+box. Solving lives in :mod:`otmm_qp_controllers.qp.solvers`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ import numpy as np
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
-from otmm_qp_controllers.qp_solvers.problem import BIG, QpProblem
+
+from .solvers.problem import BIG, QpProblem
 
 __all__ = [
     "BIG",

@@ -33,10 +33,10 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.exceptions import FrameNotFound, RobotLoadError
-from otmm_qp.peers.velocity_task import task_rows
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.planar_arm import PLANAR_FRAME, planar_mjcf, planar_urdf
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.robots.velocity_task import task_rows
 
 __all__ = [
     "MUJOCO_MESH_FORMATS",

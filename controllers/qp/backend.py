@@ -13,9 +13,10 @@ from otmm_qp.limits import Box, LimitSpec, Row, make_limits, per_joint
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend, QpStep
-from otmm_qp_controllers.qp_problem import BIG, QpFormulation, QpProblem, clip_into_box
-from otmm_qp_controllers.qp_solvers import QpSession, available_solvers, make_session
+
+from .box_backend import SOLVER_TOL, BoxQpBackend, QpStep
+from .formulation import BIG, QpFormulation, QpProblem, clip_into_box
+from .solvers import QpSession, available_solvers, make_session
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
 POLICIES = ("raise", "hold", "dls")
@@ -45,7 +46,7 @@ class QpBackend(BoxQpBackend):
     (removing solver tolerance, so a returned ``q̇`` never violates a bound). Row limits are
     lazy: only when that optimum violates one is the QP re-solved with every applicable row
     (in a second session, so neither loses its warm start). ``BackendOutput.details`` is the
-    :class:`~otmm_qp_controllers.qp_base.QpStep` of what was solved.
+    :class:`~otmm_qp_controllers.qp.box_backend.QpStep` of what was solved.
 
     Args:
         damping: λ > 0 [task units] (μ = λ²), the meaning ``damping`` has in every backend.

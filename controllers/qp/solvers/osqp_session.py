@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp_controllers.qp_solvers.problem import QpProblem
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution, conflicting_bounds
+
+from .problem import QpProblem
+from .session import QpSession, Solution, conflicting_bounds
 
 #: OSQP settings giving ~1e-10 accuracy (the error on x is about eps / λ_min(P)).
 SETTINGS = {

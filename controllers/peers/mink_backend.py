@@ -10,18 +10,19 @@ import numpy as np
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
 from otmm_qp.limits import LimitSpec
-from otmm_qp.peers.models import (
+from otmm_qp.robots.peer_models import (
     JointMap,
     PinocchioPeerModel,
     model_mismatch,
     mujoco_joint_map,
     mujoco_model,
 )
-from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
-from otmm_qp.peers.velocity_task import VelocityTaskData
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+
+from .peer_backend import PeerBackend, peer_limits, require
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
@@ -35,13 +36,13 @@ class MinkBackend(PeerBackend):
         \quad\text{s.t. configuration (gain g) and velocity limits}, \qquad \dot q = \Delta q/dt
 
     with ``e = −ẋ·dt`` and ``J`` the commanded rows of the site's world-aligned Jacobian
-    (:mod:`otmm_qp.peers.velocity_task`): ``qp``'s problem with ``λ = μ``. The MuJoCo model's
+    (:mod:`otmm_qp.robots.velocity_task`): ``qp``'s problem with ``λ = μ``. The MuJoCo model's
     joint ranges are the robot's effective limits (overrides included).
 
     The MuJoCo model is the MJCF of the robot's peer description when it has one (planar
     arms: :func:`~otmm_qp.robots.planar_arm.planar_mjcf`, in radians) or loaded from the
     description's URDF with ``package://`` paths rewritten
-    (:func:`~otmm_qp.peers.models.mujoco_model`). At :meth:`bind` Pinocchio and MuJoCo must
+    (:func:`~otmm_qp.robots.peer_models.mujoco_model`). At :meth:`bind` Pinocchio and MuJoCo must
     agree on the end-effector pose at the joint-limit midpoint (or 0.3 rad per joint when
     unbounded) within :data:`POSE_TOLERANCE`.
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from otmm_qp_controllers.qp_solvers.problem import QpProblem
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+from .problem import QpProblem
+from .session import QpSession, Solution
 
 #: DAQP sense flags of an equality row: ACTIVE (1) + IMMUTABLE (4).
 _EQUALITY = 5

@@ -6,7 +6,8 @@ import abc
 from typing import NamedTuple
 
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp_controllers.qp_solvers.problem import QpProblem
+
+from .problem import QpProblem
 
 
 class Solution(NamedTuple):

@@ -8,16 +8,16 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, check_range, draw
-from otmm_qp.tasks.search import clip_coordinates, sigma_min_at
-from otmm_qp.tasks.singular import SingularSearch
+from otmm_qp.scenarios.generator import Task, TaskGenerator, check_duration, check_range, draw
+from otmm_qp.scenarios.search import clip_coordinates, sigma_min_at
+from otmm_qp.scenarios.singular import SingularSearch
 from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
 
 
 class JointPathGenerator(TaskGenerator):
     r"""Joint path ``q_s + ε m + λ n``, ``λ ∈ [−Δ, Δ]``, its FK as the task reference.
 
-    ``q_s`` is singular (see :class:`~otmm_qp.tasks.singular.SingularSearch`), ``n`` and
+    ``q_s`` is singular (see :class:`~otmm_qp.scenarios.singular.SingularSearch`), ``n`` and
     ``m ⊥ n`` are random unit joint directions, ``ε`` the drawn joint-space offset [rad] of
     the closest approach. Both ends are clipped into the joint limits.
 

@@ -6,9 +6,9 @@ constructed, so a missing peer raises :class:`~otmm_qp.exceptions.PeerUnavailabl
 runner reports the controller as skipped with the install hint) and never breaks the rest.
 """
 
-from otmm_qp.peers.drake_backend import DrakeBackend
-from otmm_qp.peers.mink_backend import MinkBackend
-from otmm_qp.peers.peer_backend import INSTALL_HINTS, PeerBackend, require
-from otmm_qp.peers.pink_backend import PinkBackend
+from .drake_backend import DrakeBackend
+from .mink_backend import MinkBackend
+from .peer_backend import INSTALL_HINTS, PeerBackend, require
+from .pink_backend import PinkBackend
 
 __all__ = ["INSTALL_HINTS", "DrakeBackend", "MinkBackend", "PeerBackend", "PinkBackend", "require"]

@@ -8,8 +8,9 @@ from typing import Any
 import qpsolvers
 
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp_controllers.qp_solvers.problem import QpProblem
-from otmm_qp_controllers.qp_solvers.session import QpSession, Solution
+
+from .problem import QpProblem
+from .session import QpSession, Solution
 
 #: Solver options giving ~1e-10 accuracy; active-set solvers (daqp, quadprog) are exact.
 #: (Residual tolerances act on ``Px``, so the error on ``x`` is about ``eps/λ_min(P)``.)

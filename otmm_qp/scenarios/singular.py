@@ -6,8 +6,8 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import TaskGenerationError
-from otmm_qp.tasks.search import descend_sigma_min, random_coordinates
+from otmm_qp.scenarios.generator import TaskGenerationError
+from otmm_qp.scenarios.search import descend_sigma_min, random_coordinates
 
 
 class SingularSearch:

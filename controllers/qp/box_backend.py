@@ -2,7 +2,7 @@ r"""What the box-constrained QP backends share: the limits, the session, the pol
 
 :class:`BoxQpBackend` holds a backend's :class:`~otmm_qp.limits.box.LimitBox` (evaluated in
 place each step by :meth:`~BoxQpBackend.begin_step`), its persistent
-:class:`~otmm_qp_controllers.qp_solvers.QpSession` and its infeasibility policy
+:class:`~otmm_qp_controllers.qp.solvers.QpSession` and its infeasibility policy
 (:meth:`~BoxQpBackend.fallback`), and classifies a solution as ``ok`` or ``bounded``.
 :class:`QpStep` is the record of what a step solved, returned in ``BackendOutput.details``.
 """
@@ -20,8 +20,9 @@ from otmm_qp.limits import LimitBox, LimitSet, Row
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp_controllers.qp_problem import active_bound
-from otmm_qp_controllers.qp_solvers import (
+
+from .formulation import active_bound
+from .solvers import (
     QpProblem,
     QpSession,
     Solution,
@@ -70,7 +71,7 @@ class BoxQpBackend(Backend):
     :meth:`classify` or :meth:`fallback`.
 
     Args:
-        solver: A name of :func:`~otmm_qp_controllers.qp_solvers.available_solvers`.
+        solver: A name of :func:`~otmm_qp_controllers.qp.solvers.available_solvers`.
         limits: The backend's limits (:func:`otmm_qp.limits.make_limits`).
         infeasible_policy: One of :attr:`policies`.
         solvers: The solver names this backend accepts (all available ones when None).
@@ -79,7 +80,7 @@ class BoxQpBackend(Backend):
         limits: The :class:`~otmm_qp.limits.LimitSet`.
         box: Its box limits' :class:`~otmm_qp.limits.LimitBox`; ``box.bounds`` is the last
             step's ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
-        session: The persistent :class:`~otmm_qp_controllers.qp_solvers.QpSession`.
+        session: The persistent :class:`~otmm_qp_controllers.qp.solvers.QpSession`.
     """
 
     #: Accepted ``infeasible_policy`` values.

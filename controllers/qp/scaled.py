@@ -15,9 +15,10 @@ from otmm_qp.limits import LimitSpec, make_limits
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp_controllers.qp_base import SOLVER_TOL, BoxQpBackend, QpStep
-from otmm_qp_controllers.qp_problem import BIG, QpProblem, clip_into_box
-from otmm_qp_controllers.qp_solvers import SESSIONS, Solution
+
+from .box_backend import SOLVER_TOL, BoxQpBackend, QpStep
+from .formulation import BIG, QpProblem, clip_into_box
+from .solvers import SESSIONS, Solution
 
 BoolArray = npt.NDArray[np.bool_]
 POLICIES = ("raise", "hold")
@@ -95,7 +96,7 @@ class ScaledQpBackend(BoxQpBackend):
     Near a singularity the equality forces ``α → 0`` for commands along the lost direction:
     that is a result (status ``stuck``), not a failure. When the pseudoinverse solution
     already lies in the box it is returned with ``α = 1`` without calling the solver.
-    ``BackendOutput.scale`` is α; ``details`` the :class:`~otmm_qp_controllers.qp_base.QpStep`.
+    ``BackendOutput.scale`` is α; ``details`` the :class:`~.box_backend.QpStep`.
 
     Args:
         solver: One of :data:`SCALED_SOLVERS` that is installed.

@@ -29,10 +29,10 @@ import pinocchio as pin
 from otmm_qp.backends.backend import Backend, damping_weight
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
 from otmm_qp.limits import LimitSet, LimitSpec, PositionLimit, VelocityLimit, make_limits
-from otmm_qp.peers.models import describe
-from otmm_qp.peers.velocity_task import task_rows
 from otmm_qp.robots.peer_description import PeerDescription
+from otmm_qp.robots.peer_models import describe
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.robots.velocity_task import task_rows
 from otmm_qp.state import KinematicState
 
 #: The peers' Tikhonov weight μ when neither ``damping`` nor ``regularization`` is given.
@@ -140,7 +140,7 @@ class PeerBackend(Backend):
 
         Raises:
             RobotLoadError: The robot cannot describe itself to a peer, or its description
-                does not match it (see :func:`~otmm_qp.peers.models.describe`).
+                does not match it (see :func:`~otmm_qp.robots.peer_models.describe`).
         """
         super().bind(robot, dt)
         self.description: PeerDescription = describe(robot)

@@ -8,8 +8,8 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, draw
-from otmm_qp.tasks.search import position_of, random_coordinates, sigma_min_at
+from otmm_qp.scenarios.generator import Task, TaskGenerator, check_duration, draw
+from otmm_qp.scenarios.search import position_of, random_coordinates, sigma_min_at
 from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
 
 #: Peak speed of the quintic law over its mean: ``max ṡ = 15/8``.

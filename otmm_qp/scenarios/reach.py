@@ -2,7 +2,7 @@ r"""The arm's true reach from its model: the farthest the frame gets from the fi
 
 .. math:: R = \max_{l \le q \le u} \|p(q) - b\|
 
-(``b`` the first joint's origin, see :func:`~otmm_qp.tasks.search.base_position``). Found by
+(``b`` the first joint's origin, see :func:`~otmm_qp.scenarios.search.base_position``). Found by
 sampling the joint box (deterministic seed) and refining the best samples by projected
 gradient ascent on ``½‖p − b‖²`` (gradient ``J_pᵀ(p − b)``) with a backtracking step. A
 local method: ``R`` is a lower bound of the maximum that the refinement makes tight in
@@ -21,7 +21,7 @@ import weakref
 import numpy as np
 
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.search import base_position, position_of, random_coordinates, sampling_bounds
+from otmm_qp.scenarios.search import base_position, position_of, random_coordinates, sampling_bounds
 
 #: Joint-box samples and how many of the best are refined.
 SAMPLES = 600

@@ -12,12 +12,13 @@ import numpy as np
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitSpec
-from otmm_qp.peers.models import JointMap, peer_urdf, pinocchio_model, root_link
-from otmm_qp.peers.peer_backend import PeerBackend, peer_limits, require
 from otmm_qp.robots.peer_description import PeerDescription
+from otmm_qp.robots.peer_models import JointMap, peer_urdf, pinocchio_model, root_link
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+
+from .peer_backend import PeerBackend, peer_limits, require
 
 #: Name of the frame added at the end effector of the Drake plant.
 DRAKE_FRAME = "otmm_ee"
@@ -37,9 +38,9 @@ class DrakeBackend(PeerBackend):
     ``stuck``; no solution as ``infeasible`` (zero joint speed).
 
     The plant is parsed from the URDF of the robot's peer description, rewritten by
-    :func:`~otmm_qp.peers.models.peer_urdf` (kinematics only), its root link welded to the
+    :func:`~otmm_qp.robots.peer_models.peer_urdf` (kinematics only), its root link welded to the
     world. The end-effector frame is added at the Pinocchio frame placement
-    (:func:`~otmm_qp.peers.models.pinocchio_model`).
+    (:func:`~otmm_qp.robots.peer_models.pinocchio_model`).
 
     Args:
         stuck_scaling: α below which Drake reports ``stuck``, in ``[0, 1)``.

@@ -10,7 +10,7 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import (
+from otmm_qp.scenarios.generator import (
     Task,
     TaskGenerationError,
     TaskGenerator,
@@ -18,7 +18,7 @@ from otmm_qp.tasks.generator import (
     check_range,
     draw,
 )
-from otmm_qp.tasks.search import (
+from otmm_qp.scenarios.search import (
     base_position,
     position_of,
     random_coordinates,

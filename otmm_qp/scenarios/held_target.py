@@ -9,8 +9,8 @@ import pinocchio as pin
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator
-from otmm_qp.tasks.search import position_of, random_coordinates, sigma_min_at
+from otmm_qp.scenarios.generator import Task, TaskGenerator
+from otmm_qp.scenarios.search import position_of, random_coordinates, sigma_min_at
 from otmm_qp.trajectories.held_targets import HeldTargetsTrajectory
 
 

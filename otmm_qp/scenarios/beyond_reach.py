@@ -8,9 +8,9 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import Task, TaskGenerator, check_duration, check_range, draw
-from otmm_qp.tasks.reach import true_reach
-from otmm_qp.tasks.search import (
+from otmm_qp.scenarios.generator import Task, TaskGenerator, check_duration, check_range, draw
+from otmm_qp.scenarios.reach import true_reach
+from otmm_qp.scenarios.search import (
     base_position,
     position_of,
     random_coordinates,
@@ -23,7 +23,7 @@ class BeyondReachGenerator(TaskGenerator):
     r"""From a random start ``p_0`` out to ``b + ρ R (p_0 − b)/‖p_0 − b‖`` and back.
 
     ``b`` is the first joint's origin, ``R`` the robot's true reach computed from its model
-    (:func:`~otmm_qp.tasks.reach.true_reach`: the farthest the frame gets from ``b`` within
+    (:func:`~otmm_qp.scenarios.reach.true_reach`: the farthest the frame gets from ``b`` within
     the joint limits, not a sum of link offsets) and ``ρ > 1`` the drawn overshoot, so the
     target is out of reach by ``(ρ − 1)R``. Pose tasks keep the start orientation.
 

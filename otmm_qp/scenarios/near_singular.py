@@ -10,7 +10,7 @@ import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.tasks.generator import (
+from otmm_qp.scenarios.generator import (
     Task,
     TaskGenerationError,
     TaskGenerator,
@@ -18,8 +18,8 @@ from otmm_qp.tasks.generator import (
     check_range,
     draw,
 )
-from otmm_qp.tasks.search import position_of, sigma_min_at, solve_ik, with_position
-from otmm_qp.tasks.singular import SingularSearch
+from otmm_qp.scenarios.search import position_of, sigma_min_at, solve_ik, with_position
+from otmm_qp.scenarios.singular import SingularSearch
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.pose import PoseCircleTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import numpy as np
+from numbers import Real
+from typing import ClassVar
 
 from otmm_qp.backends.backend import Backend, BackendOutput
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 
@@ -26,10 +27,12 @@ class DampedLeastSquaresBackend(Backend):
     """
 
     name = "dls"
+    parameter_constraints: ClassVar[Constraints] = {
+        "damping": Interval(Real, 0, None, closed="left"),
+    }
 
     def __init__(self, damping: float = 0.05) -> None:
-        if not (np.isfinite(damping) and damping >= 0.0):
-            raise ParameterError("damping", f"must be a finite number >= 0, got {damping}")
+        check_params(self, locals())
         self.damping = float(damping)
 
     def solve(

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput
-from otmm_qp.exceptions import ConfigError, ParameterError
+from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 
@@ -38,21 +42,21 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
     """
 
     name = "dls_adaptive"
+    parameter_constraints: ClassVar[Constraints] = {
+        "alpha": Interval(Real, 0, None, closed="left"),
+        "w0": [Interval(Real, 0, None, closed="neither"), None],
+        "sigma_threshold": [Interval(Real, 0, None, closed="neither"), None],
+    }
 
     def __init__(
         self, alpha: float = 0.003, w0: float | None = None, sigma_threshold: float | None = None
     ) -> None:
-        if not (np.isfinite(alpha) and alpha >= 0.0):
-            raise ParameterError("alpha", f"must be a finite number >= 0, got {alpha}")
+        check_params(self, locals())
         if (w0 is None) == (sigma_threshold is None):
             raise ConfigError("w0", "give exactly one of w0 or sigma_threshold")
-        if w0 is not None and not w0 > 0.0:
-            raise ParameterError("w0", f"must be > 0, got {w0}")
-        if sigma_threshold is not None and not sigma_threshold > 0.0:
-            raise ParameterError("sigma_threshold", f"must be > 0, got {sigma_threshold}")
         self.alpha = float(alpha)
-        self.w0 = w0
-        self.sigma_threshold = sigma_threshold
+        self.w0 = None if w0 is None else float(w0)
+        self.sigma_threshold = None if sigma_threshold is None else float(sigma_threshold)
 
     def damping_for(self, state: KinematicState) -> float:
         """Damping ``k = λ²`` [task units²] added to ``JJᵀ`` at this state."""
@@ -62,9 +66,8 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
         w = float(np.prod(sigma))
         if self.w0 is not None:
             w0 = self.w0
-        else:
-            assert self.sigma_threshold is not None  # noqa: S101 - guaranteed by __init__
-            w0 = self.sigma_threshold * float(np.prod(sigma[:-1]))
+        else:  # __init__ guarantees exactly one of the two
+            w0 = float(self.sigma_threshold or 0.0) * float(np.prod(sigma[:-1]))
         if w >= w0 or w0 <= 0.0:
             return 0.0
         return self.alpha * (1.0 - w / w0) ** 2

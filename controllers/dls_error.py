@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -11,17 +13,24 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params, check_renamed
 
 from .damping import damped_least_squares
 
+#: The parameters renamed because they are λ² while ``damping`` means λ everywhere else.
+RENAMED = {
+    "damping_floor": (
+        "renamed to lambda_sq_floor, the same number (it is λ² [task units²/rad²]; "
+        "a damping factor λ gives lambda_sq_floor: λ²)"
+    ),
+    "max_damping": (
+        "renamed to max_lambda_sq, the same number (it is λ² [task units²/rad²]; "
+        "a cap λ_max gives max_lambda_sq: λ_max²)"
+    ),
+}
 
-def _finite_at_least(name: str, value: object, low: float, strict: bool) -> float:
-    """``value`` as a float, refused unless finite and ``> low`` (``strict``) or ``>= low``."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ParameterError(name, f"must be a finite number, got {value!r:.40}")
-    if (strict and not value > low) or (not strict and not value >= low):
-        raise ParameterError(name, f"must be {'>' if strict else '>='} {low:g}, got {value!r:.40}")
-    return float(value)
+_NON_NEGATIVE = Interval(Real, 0, None, closed="left")
+_POSITIVE = Interval(Real, 0, None, closed="neither")
 
 
 class ErrorDampedLeastSquaresBackend(Backend):
@@ -57,54 +66,48 @@ class ErrorDampedLeastSquaresBackend(Backend):
     Args:
         error_weight: :math:`w_E` ≥ 0, a scalar or one per task row, shape ``(n,)``
             [1/(task unit)² × (task unit/rad)², so λ² is in the units of σ²].
-        damping_floor: :math:`\bar w_N` ≥ 0 [task units²/rad²], the damping at zero error
-            (Sugihara's bias; ~1e-3 of the squared σ_max keeps exactly singular steps finite).
+        lambda_sq_floor: :math:`\bar w_N = \lambda^2_{floor}` ≥ 0 [task units²/rad²], the
+            damping at zero error (Sugihara's bias; ~1e-3 of the squared σ_max keeps exactly
+            singular steps finite). Formerly ``damping_floor`` (the same number).
         error_horizon: τ > 0 [s] of :math:`e = \tau\dot x_w`; ``None``: the control period dt.
-        max_damping: Upper bound of λ² > 0 [task units²/rad²] (``None``: none), so a huge
-            error cannot freeze the arm.
+        max_lambda_sq: Upper bound of λ² > 0 [task units²/rad²] (``None``: none), so a huge
+            error cannot freeze the arm. Formerly ``max_damping`` (the same number).
+        **removed: Only the old names ``damping_floor`` / ``max_damping``, refused with
+            their new name (:data:`RENAMED`).
+
+    Raises:
+        ParameterError: A value out of range, ``max_lambda_sq < lambda_sq_floor``, or an
+            old parameter name.
     """
 
     name = "dls_error"
+    parameter_constraints: ClassVar[Constraints] = {
+        "error_weight": ArrayOf(_NON_NEGATIVE, scalar=True, per="task row"),
+        "lambda_sq_floor": _NON_NEGATIVE,
+        "error_horizon": [Interval(Real, 0, None, closed="neither", unit="s"), None],
+        "max_lambda_sq": [_POSITIVE, None],
+    }
 
     def __init__(
         self,
         error_weight: float | Sequence[float] = 1.0,
-        damping_floor: float = 1e-3,
+        lambda_sq_floor: float = 1e-3,
         error_horizon: float | None = None,
-        max_damping: float | None = None,
+        max_lambda_sq: float | None = None,
+        **removed: object,
     ) -> None:
-        if isinstance(error_weight, int | float):
-            _finite_at_least("error_weight", error_weight, 0.0, strict=False)
-            weights = np.array([float(error_weight)])
-        else:
-            try:
-                weights = np.asarray(error_weight, dtype=float)
-            except (TypeError, ValueError):
-                raise ParameterError(
-                    "error_weight",
-                    f"must be a number or a list of numbers, got {error_weight!r:.40}",
-                ) from None
-            if weights.ndim != 1 or weights.size == 0:
-                raise ParameterError("error_weight", "must be a number or a non-empty list")
-            if not (np.all(np.isfinite(weights)) and np.all(weights >= 0.0)):
-                raise ParameterError("error_weight", "every entry must be a finite number >= 0")
-        self.error_weight = weights
+        check_renamed(self, removed, RENAMED)
+        check_params(self, locals())
         self._per_row = not isinstance(error_weight, int | float)
-        self.damping_floor = _finite_at_least("damping_floor", damping_floor, 0.0, strict=False)
-        self.error_horizon = (
-            None
-            if error_horizon is None
-            else _finite_at_least("error_horizon", error_horizon, 0.0, strict=True)
-        )
-        self.max_damping = (
-            None
-            if max_damping is None
-            else _finite_at_least("max_damping", max_damping, 0.0, strict=True)
-        )
-        if self.max_damping is not None and self.max_damping < self.damping_floor:
+        self.error_weight = np.atleast_1d(np.asarray(error_weight, dtype=float))
+        self.lambda_sq_floor = float(lambda_sq_floor)
+        self.error_horizon = None if error_horizon is None else float(error_horizon)
+        self.max_lambda_sq = None if max_lambda_sq is None else float(max_lambda_sq)
+        if self.max_lambda_sq is not None and self.max_lambda_sq < self.lambda_sq_floor:
             raise ParameterError(
-                "max_damping",
-                f"must be >= damping_floor ({self.damping_floor:g}), got {self.max_damping:g}",
+                "max_lambda_sq",
+                f"must be >= lambda_sq_floor ({self.lambda_sq_floor:g}), "
+                f"got {self.max_lambda_sq:g}",
             )
 
     def bind(self, robot: Robot, dt: float) -> None:
@@ -118,11 +121,11 @@ class ErrorDampedLeastSquaresBackend(Backend):
         horizon = self.dt if self.error_horizon is None else self.error_horizon
         error = horizon * np.asarray(xdot, dtype=float)
         with np.errstate(over="ignore", invalid="ignore"):
-            mu = float(error @ (self.error_weight * error)) + self.damping_floor
+            mu = float(error @ (self.error_weight * error)) + self.lambda_sq_floor
         if not math.isfinite(mu):  # an overflowing command: damp as much as allowed
             mu = math.inf
-        if self.max_damping is not None:
-            mu = min(mu, self.max_damping)
+        if self.max_lambda_sq is not None:
+            mu = min(mu, self.max_lambda_sq)
         return mu
 
     def solve(

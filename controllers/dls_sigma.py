@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 
@@ -29,12 +32,13 @@ class SigmaDampedLeastSquaresBackend(Backend):
     """
 
     name = "dls_sigma"
+    parameter_constraints: ClassVar[Constraints] = {
+        "lambda_max": Interval(Real, 0, None, closed="neither"),
+        "epsilon": Interval(Real, 0, None, closed="neither"),
+    }
 
     def __init__(self, lambda_max: float = 0.05, epsilon: float = 0.05) -> None:
-        if not (np.isfinite(lambda_max) and lambda_max > 0.0):
-            raise ParameterError("lambda_max", f"must be a finite number > 0, got {lambda_max}")
-        if not (np.isfinite(epsilon) and epsilon > 0.0):
-            raise ParameterError("epsilon", f"must be a finite number > 0, got {epsilon}")
+        check_params(self, locals())
         self.lambda_max = float(lambda_max)
         self.epsilon = float(epsilon)
 

@@ -2,9 +2,9 @@ r"""J-PARSE (Guptasarma et al., 2025): safety Jacobian, projection and singular 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -12,8 +12,12 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, InstanceOf, Interval, check_params
 
-from .secondary_tasks import SecondaryTask, finite_number, secondary_task_from
+from .secondary_tasks import SecondaryTask, secondary_task_from
+
+#: ``secondary:`` of the backends that take a joint-space secondary task.
+SECONDARY = InstanceOf((Mapping, SecondaryTask), "a mapping {type: posture | joint_limits, ...}")
 
 
 class JParseBackend(Backend):
@@ -73,6 +77,13 @@ class JParseBackend(Backend):
     """
 
     name = "jparse"
+    parameter_constraints: ClassVar[Constraints] = {
+        "gamma": Interval(Real, 0, 1, closed="neither"),
+        "singular_gain": Interval(Real, 0, None, closed="left"),
+        "position_gain": Interval(Real, 0, None, closed="left"),
+        "orientation_gain": Interval(Real, 0, None, closed="left"),
+        "secondary": [SECONDARY, None],
+    }
 
     def __init__(
         self,
@@ -82,20 +93,11 @@ class JParseBackend(Backend):
         orientation_gain: float = 1.0,
         secondary: SecondaryTask | Mapping[str, Any] | None = None,
     ) -> None:
-        if not (isinstance(gamma, int | float) and math.isfinite(gamma) and 0.0 < gamma < 1.0):
-            raise ParameterError("gamma", f"must be in (0, 1), got {gamma!r}")
-        if not (
-            isinstance(singular_gain, int | float)
-            and math.isfinite(singular_gain)
-            and singular_gain >= 0.0
-        ):
-            raise ParameterError(
-                "singular_gain", f"must be a finite number >= 0, got {singular_gain!r}"
-            )
+        check_params(self, locals())
         self.gamma = float(gamma)
         self.singular_gain = float(singular_gain)
-        self.position_gain = finite_number("position_gain", position_gain)
-        self.orientation_gain = finite_number("orientation_gain", orientation_gain)
+        self.position_gain = float(position_gain)
+        self.orientation_gain = float(orientation_gain)
         self.secondary = secondary_task_from(secondary)
         self._row_gains: FloatArray | None = None
 

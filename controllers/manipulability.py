@@ -2,14 +2,15 @@ r"""Null-space ascent of Yoshikawa's manipulability for redundant arms."""
 
 from __future__ import annotations
 
-import math
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 
@@ -73,12 +74,13 @@ class ManipulabilityBackend(Backend):
     """
 
     name = "manipulability"
+    parameter_constraints: ClassVar[Constraints] = {
+        "gain": Interval(Real, 0, None, closed="left"),
+        "damping": Interval(Real, 0, None, closed="left"),
+    }
 
     def __init__(self, gain: float = 1.0, damping: float = 0.0) -> None:
-        if not (isinstance(gain, int | float) and math.isfinite(gain) and gain >= 0.0):
-            raise ParameterError("gain", f"must be a finite number >= 0, got {gain!r}")
-        if not (isinstance(damping, int | float) and math.isfinite(damping) and damping >= 0.0):
-            raise ParameterError("damping", f"must be a finite number >= 0, got {damping!r}")
+        check_params(self, locals())
         self.gain = float(gain)
         self.damping = float(damping)
 

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 from otmm_qp.backends.backend import (
     RCOND,
     Backend,
     BackendOutput,
     truncated_pseudoinverse_apply,
 )
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 class PseudoInverseBackend(Backend):
@@ -31,10 +34,12 @@ class PseudoInverseBackend(Backend):
     """
 
     name = "pinv"
+    parameter_constraints: ClassVar[Constraints] = {
+        "rcond": Interval(Real, 0, 1, closed="left"),
+    }
 
     def __init__(self, rcond: float = RCOND) -> None:
-        if not 0.0 <= rcond < 1.0:
-            raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
+        check_params(self, locals())
         self.rcond = float(rcond)
 
     def solve(

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.backends.backend import RCOND, Backend, BackendOutput, rank_cutoff
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 def clamp_max_abs(w: FloatArray, d: float) -> FloatArray:
@@ -38,12 +41,13 @@ class SelectiveDampedLeastSquaresBackend(Backend):
     """
 
     name = "sdls"
+    parameter_constraints: ClassVar[Constraints] = {
+        "gamma_max": Interval(Real, 0, None, closed="neither", unit="rad"),
+        "rcond": Interval(Real, 0, 1, closed="left"),
+    }
 
     def __init__(self, gamma_max: float = float(np.pi / 4), rcond: float = RCOND) -> None:
-        if not (np.isfinite(gamma_max) and gamma_max > 0.0):
-            raise ParameterError("gamma_max", f"must be a finite number > 0 [rad], got {gamma_max}")
-        if not 0.0 <= rcond < 1.0:
-            raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
+        check_params(self, locals())
         self.gamma_max = float(gamma_max)
         self.rcond = float(rcond)
 

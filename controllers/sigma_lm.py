@@ -4,15 +4,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params, check_renamed
 
 from .damping import damped_least_squares
 from .dls_error import ErrorDampedLeastSquaresBackend
-from .secondary_tasks import finite_number
 from .task_priority import sigma_damping
+
+#: ``damping_floor`` was λ² while ``damping`` means λ everywhere else.
+RENAMED = {
+    "damping_floor": (
+        "renamed to lambda_sq_floor, the same number (it is λ² [task units²/rad²]; "
+        "a damping factor λ gives lambda_sq_floor: λ²)"
+    ),
+}
+_ERROR_TERM = ErrorDampedLeastSquaresBackend.parameter_constraints
 
 
 class SigmaLevenbergMarquardtBackend(Backend):
@@ -48,10 +59,20 @@ class SigmaLevenbergMarquardtBackend(Backend):
         max_error_damping: :math:`\lambda_{e,max}` > 0 [task units/rad], cap of the error term.
         max_damping: :math:`\lambda_{max}` ≥ 0 [task units/rad] of the σ term.
         sigma_threshold: ε > 0 [task units/rad] below which the σ term starts.
-        damping_floor: :math:`\bar w_N` ≥ 0 [task units²/rad²].
+        lambda_sq_floor: :math:`\bar w_N = \lambda^2_{floor}` ≥ 0 [task units²/rad²]
+            (formerly ``damping_floor``, the same number).
+        **removed: Only the old name ``damping_floor``, refused with its new name.
     """
 
     name = "sigma_lm"
+    parameter_constraints: ClassVar[Constraints] = {
+        "error_weight": _ERROR_TERM["error_weight"],
+        "error_horizon": _ERROR_TERM["error_horizon"],
+        "max_error_damping": [Interval(Real, 0, None, closed="neither"), None],
+        "max_damping": Interval(Real, 0, None, closed="left"),
+        "sigma_threshold": Interval(Real, 0, None, closed="neither"),
+        "lambda_sq_floor": Interval(Real, 0, None, closed="left"),
+    }
 
     def __init__(
         self,
@@ -60,23 +81,22 @@ class SigmaLevenbergMarquardtBackend(Backend):
         max_error_damping: float | None = None,
         max_damping: float = 0.05,
         sigma_threshold: float = 0.05,
-        damping_floor: float = 0.0,
+        lambda_sq_floor: float = 0.0,
+        **removed: object,
     ) -> None:
-        cap = (
-            None
-            if max_error_damping is None
-            else finite_number("max_error_damping", max_error_damping, strict=True)
-        )
+        check_renamed(self, removed, RENAMED)
+        check_params(self, locals())
+        cap = None if max_error_damping is None else float(max_error_damping)
         self.error = ErrorDampedLeastSquaresBackend(
             error_weight=error_weight,
-            damping_floor=0.0,
+            lambda_sq_floor=0.0,
             error_horizon=error_horizon,
-            max_damping=None if cap is None else cap**2,
+            max_lambda_sq=None if cap is None else cap**2,
         )
         self.max_error_damping = cap
-        self.max_damping = finite_number("max_damping", max_damping)
-        self.sigma_threshold = finite_number("sigma_threshold", sigma_threshold, strict=True)
-        self.damping_floor = finite_number("damping_floor", damping_floor)
+        self.max_damping = float(max_damping)
+        self.sigma_threshold = float(sigma_threshold)
+        self.lambda_sq_floor = float(lambda_sq_floor)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the error term (its per-row weight check) and the robot."""
@@ -86,7 +106,7 @@ class SigmaLevenbergMarquardtBackend(Backend):
     def damping_for(self, state: KinematicState, xdot: FloatArray) -> float:
         """λ² [task units²/rad²] of this step (see the class docstring)."""
         sigma_part = sigma_damping(state.sigma_min, self.max_damping, self.sigma_threshold)
-        return self.damping_floor + sigma_part + self.error.damping_for(xdot)
+        return self.lambda_sq_floor + sigma_part + self.error.damping_for(xdot)
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray

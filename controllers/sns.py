@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitBox, LimitSpec, make_limits
+from otmm_qp.limits.options import LIMITS
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 def task_scaling_factor(
@@ -95,6 +99,11 @@ class SnsBackend(Backend):
     """
 
     name = "sns"
+    parameter_constraints: ClassVar[Constraints] = {
+        "limits": [LIMITS, None],
+        "rcond": Interval(Real, 0, 1, closed="left"),
+        "max_speed": [Interval(Real, 0, None, closed="neither", unit="rad/s"), None],
+    }
     enforces_limits = True
 
     def __init__(
@@ -103,8 +112,7 @@ class SnsBackend(Backend):
         rcond: float = 1e-10,
         max_speed: float | None = None,
     ) -> None:
-        if not (isinstance(rcond, int | float) and 0.0 <= rcond < 1.0):
-            raise ParameterError("rcond", f"must be in [0, 1), got {rcond!r}")
+        check_params(self, locals())
         self.limits = make_limits(limits, {"max_speed": max_speed}, default_gain=1.0)
         if self.limits.rows:
             names = ", ".join(row.name for row in self.limits.rows)

@@ -3,16 +3,18 @@ r"""Singularity-robust task priority (Chiaverini 1997): the secondary in a dampe
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Literal
+from numbers import Real
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput, rank_cutoff
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, OneOf, check_params
 
-from .secondary_tasks import SecondaryTask, finite_number, secondary_task_from
+from .jparse import SECONDARY
+from .secondary_tasks import SecondaryTask, secondary_task_from
 
 
 def sigma_damping(sigma_min: float, max_damping: float, sigma_threshold: float) -> float:
@@ -73,6 +75,12 @@ class TaskPriorityBackend(Backend):
     """
 
     name = "task_priority"
+    parameter_constraints: ClassVar[Constraints] = {
+        "secondary": [SECONDARY, None],
+        "max_damping": Interval(Real, 0, None, closed="left"),
+        "sigma_threshold": Interval(Real, 0, None, closed="neither"),
+        "projector": OneOf("damped", "exact"),
+    }
 
     def __init__(
         self,
@@ -81,13 +89,12 @@ class TaskPriorityBackend(Backend):
         sigma_threshold: float = 0.05,
         projector: Literal["damped", "exact"] = "damped",
     ) -> None:
+        check_params(self, locals())
         task = secondary_task_from({"type": "posture"} if secondary is None else secondary)
         assert task is not None  # noqa: S101 - a mapping always gives a task
         self.secondary = task
-        self.max_damping = finite_number("max_damping", max_damping)
-        self.sigma_threshold = finite_number("sigma_threshold", sigma_threshold, strict=True)
-        if projector not in ("damped", "exact"):
-            raise ParameterError("projector", f"must be 'damped' or 'exact', got {projector!r:.40}")
+        self.max_damping = float(max_damping)
+        self.sigma_threshold = float(sigma_threshold)
         self.projector = projector
 
     def bind(self, robot: Robot, dt: float) -> None:

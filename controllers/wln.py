@@ -3,14 +3,15 @@ r"""Weighted least-norm joint-limit avoidance (Chan & Dubey 1995)."""
 from __future__ import annotations
 
 import math
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput, rank_cutoff
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState, thin_svd
-
-from .secondary_tasks import finite_number
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 def limit_cost_gradient(theta: FloatArray, lower: FloatArray, upper: FloatArray) -> FloatArray:
@@ -74,9 +75,13 @@ class WeightedLeastNormBackend(Backend):
     """
 
     name = "wln"
+    parameter_constraints: ClassVar[Constraints] = {
+        "damping": Interval(Real, 0, None, closed="left"),
+    }
 
     def __init__(self, damping: float = 0.0) -> None:
-        self.damping = finite_number("damping", damping)
+        check_params(self, locals())
+        self.damping = float(damping)
         self._previous: FloatArray | None = None
 
     def reset(self) -> None:

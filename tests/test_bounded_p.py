@@ -86,12 +86,18 @@ def test_default_gain_keeps_cbrt_away_from_the_singularity() -> None:
 @pytest.mark.parametrize(
     ("params", "message"),
     [
-        ({"max_gain": 0.0}, "max_gain: must be a finite number > 0, got 0.0"),
-        ({"max_gain": -3.0}, "max_gain: must be a finite number > 0, got -3.0"),
-        ({"max_gain": float("nan")}, "max_gain: must be a finite number > 0, got nan"),
-        ({"max_gain": 10.0}, "max_gain: must be >= 1/sigma_s = 20 so p is continuous"),
-        ({"base": "bounded"}, "base: must be one of linear, sqrt, cbrt, power, got 'bounded'"),
-        ({"base": "power", "a": 0.0}, "a: exponent must be > 0, got 0.0"),
+        ({"max_gain": 0.0}, "p_params.max_gain: must be a finite number > 0 or None, got 0.0"),
+        ({"max_gain": -3.0}, "p_params.max_gain: must be a finite number > 0 or None, got -3.0"),
+        (
+            {"max_gain": float("nan")},
+            "p_params.max_gain: must be a finite number > 0 or None, got n",
+        ),
+        ({"max_gain": 10.0}, "p_params.max_gain: must be >= 1/sigma_s = 20 so p is continuous"),
+        (
+            {"base": "bounded"},
+            "p_params.base: must be one of 'linear', 'sqrt', 'cbrt', 'power', got",
+        ),
+        ({"base": "power", "a": 0.0}, "p_params.a: must be a finite number > 0, got 0.0"),
     ],
 )
 def test_bad_parameters_name_the_field(params: dict[str, object], message: str) -> None:

@@ -121,9 +121,9 @@ def test_structurally_singular_arm_removes_the_missing_direction() -> None:
     ("params", "message"),
     [
         ({"sigma_s": 0.0}, "sigma_s: must be a finite number > 0, got 0.0"),
-        ({"max_gain": -1.0}, "max_gain: must be a finite number > 0, got -1.0"),
+        ({"max_gain": -1.0}, "max_gain: must be a finite number > 0 or None, got -1.0"),
         ({"max_gain": 5.0}, "max_gain: must be >= 1/sigma_s = 20"),
-        ({"approach_rate": float("nan")}, "approach_rate: must be a finite number, got nan"),
+        ({"approach_rate": float("nan")}, "approach_rate: must be a finite number [1/s], got nan"),
         (
             {"approach_rate": 1.0, "leave_rate": 1.0},
             "leave_rate: must be a finite number > approach_rate (1.0), got 1.0",

@@ -29,7 +29,7 @@ def bound(backend: ErrorDampedLeastSquaresBackend, m: int = 3, dt: float = 0.02)
 def test_damping_is_the_weighted_error_norm_plus_the_floor(
     direction: list[float], floor: float, weight: float
 ) -> None:
-    backend = ErrorDampedLeastSquaresBackend(error_weight=weight, damping_floor=floor)
+    backend = ErrorDampedLeastSquaresBackend(error_weight=weight, lambda_sq_floor=floor)
     bound(backend)
     xdot = np.array(direction)
     e = 0.02 * xdot  # the LM-step reading: e = dt ẋ
@@ -45,13 +45,13 @@ def test_per_row_weights_and_the_set_point_horizon() -> None:
     bound(backend)
     xdot = np.array([1.0, 2.0])  # clik with K = 10 /s and a held target: e = ẋ/K
     assert backend.damping_for(xdot) == pytest.approx(2.0 * 0.01 + 0.5 * 0.04 + 1e-3)
-    capped = ErrorDampedLeastSquaresBackend(error_weight=1e6, max_damping=0.5)
+    capped = ErrorDampedLeastSquaresBackend(error_weight=1e6, max_lambda_sq=0.5)
     bound(capped)
     assert capped.damping_for(xdot) == 0.5
 
 
 def test_solution_is_dls_with_that_damping_and_finite_at_exact_singularity() -> None:
-    backend = ErrorDampedLeastSquaresBackend(error_weight=5.0, damping_floor=1e-3)
+    backend = ErrorDampedLeastSquaresBackend(error_weight=5.0, lambda_sq_floor=1e-3)
     arm = bound(backend)
     for q in (np.array([0.3, 0.5, -0.4]), np.array([0.2, 0.0, 0.0])):  # the second: stretched
         state = KinematicState.compute(arm, q)
@@ -63,7 +63,7 @@ def test_solution_is_dls_with_that_damping_and_finite_at_exact_singularity() -> 
         assert out.damping == pytest.approx(np.sqrt(mu))
         assert np.all(np.isfinite(out.qdot))
     # Floor 0 and zero error at an exact singularity: zero motion, not 0/0.
-    plain = ErrorDampedLeastSquaresBackend(damping_floor=0.0)
+    plain = ErrorDampedLeastSquaresBackend(lambda_sq_floor=0.0)
     bound(plain)
     state = KinematicState.compute(arm, np.array([0.2, 0.0, 0.0]))
     np.testing.assert_array_equal(plain.solve(state, np.zeros(2), np.zeros(3)).qdot, 0.0)
@@ -72,7 +72,7 @@ def test_solution_is_dls_with_that_damping_and_finite_at_exact_singularity() -> 
 
 
 def test_near_target_it_is_the_pseudoinverse_far_away_it_damps() -> None:
-    backend = ErrorDampedLeastSquaresBackend(error_weight=100.0, damping_floor=0.0)
+    backend = ErrorDampedLeastSquaresBackend(error_weight=100.0, lambda_sq_floor=0.0)
     arm = bound(backend)
     state = KinematicState.compute(arm, np.array([0.1, 0.02, 0.02]))  # near stretch
     small = np.array([1e-4, 1e-4])
@@ -90,14 +90,20 @@ def test_near_target_it_is_the_pseudoinverse_far_away_it_damps() -> None:
 @pytest.mark.parametrize(
     ("params", "message"),
     [
-        ({"error_weight": -1.0}, "error_weight: must be >= 0"),
-        ({"error_weight": float("nan")}, "error_weight: must be a finite number"),
-        ({"error_weight": [1.0, -2.0]}, "error_weight: every entry must be a finite number >= 0"),
-        ({"error_weight": "x"}, "error_weight: must be a number or a list"),
-        ({"damping_floor": float("inf")}, "damping_floor: must be a finite number"),
-        ({"error_horizon": 0.0}, "error_horizon: must be > 0"),
-        ({"max_damping": -1.0}, "max_damping: must be > 0"),
-        ({"damping_floor": 1.0, "max_damping": 0.5}, "max_damping: must be >= damping_floor"),
+        ({"error_weight": -1.0}, "error_weight: must be a finite number >= 0 or a list"),
+        ({"error_weight": float("nan")}, "error_weight: must be a finite number >= 0"),
+        ({"error_weight": [1.0, -2.0]}, "error_weight: must be a finite number >= 0 or a list"),
+        ({"error_weight": "x"}, "error_weight: must be a finite number >= 0 or a list of them"),
+        ({"lambda_sq_floor": float("inf")}, "lambda_sq_floor: must be a finite number"),
+        ({"error_horizon": 0.0}, "error_horizon: must be a finite number > 0 [s] or None"),
+        ({"max_lambda_sq": -1.0}, "max_lambda_sq: must be a finite number > 0"),
+        (
+            {"lambda_sq_floor": 1.0, "max_lambda_sq": 0.5},
+            "max_lambda_sq: must be >= lambda_sq_floor",
+        ),
+        ({"damping_floor": 1e-4}, "damping_floor: renamed to lambda_sq_floor, the same number"),
+        ({"max_damping": 0.5}, "max_damping: renamed to max_lambda_sq, the same number"),
+        ({"damping_flor": 1e-4}, "damping_flor: unknown parameter; allowed: error_weight"),
     ],
 )
 def test_bad_parameters_name_the_field(params: dict[str, object], message: str) -> None:

@@ -84,7 +84,7 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
     ),
     "string power exponent": (
         GOOD.replace("p: linear", "p: power, p_params: {a: steep}"),
-        r"filters\.0\.p_params\.a: input should be a valid number, got 'steep'",
+        r"filters\.0\.p_params\.a: must be a finite number > 0, got 'steep'",
     ),
     "NaN joint limits": (
         GOOD.replace("[1.0, 0.8]}", "[1.0, 0.8], limits: [[.nan, 1.0], [-3, 3]]}"),

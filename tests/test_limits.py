@@ -142,8 +142,11 @@ def test_older_keys_are_the_limits_form_bit_for_bit() -> None:
         ),
         (lambda: QpBackend(limits=[{"type": "position", "gain": 2}]), "limits.0.gain: must be in"),
         (lambda: QpBackend(limits=[{"type": "position", "g": 1}]), "limits.0.g: unknown parameter"),
-        (lambda: QpBackend(limit_gain=0.0), "limit_gain: must be in (0, 1], got 0.0"),
-        (lambda: QpBackend(acceleration_limit=-1.0), "acceleration_limit: must be > 0"),
+        (lambda: QpBackend(limit_gain=0.0), "limit_gain: must be in (0, 1] or None, got 0.0"),
+        (
+            lambda: QpBackend(acceleration_limit=-1.0),
+            "acceleration_limit: must be a finite number > 0 [rad/s²]",
+        ),
         (lambda: SnsBackend(max_speed=float("inf")), "max_speed: must be a finite number > 0"),
         (lambda: SnsBackend(limits=[{"type": "singularity_barrier"}]), "limits: sns takes box"),
         (lambda: ScaledQpBackend(limits=[SingularityBarrier()]), "limits: qp_scaled takes box"),

@@ -97,5 +97,5 @@ def test_parameter_errors() -> None:
         OtmmFilter(p="quartic")
     with pytest.raises(ConfigError, match="p_params.b: unknown parameter; allowed: a"):
         OtmmFilter(p="power", p_params={"b": 2})
-    with pytest.raises(ParameterError, match="a: exponent must be > 0"):
+    with pytest.raises(ParameterError, match="p_params.a: must be a finite number > 0"):
         OtmmFilter(p="power", p_params={"a": -1})

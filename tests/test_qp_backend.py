@@ -192,10 +192,10 @@ def test_damping_means_lambda_as_in_dls() -> None:
     ("options", "message"),
     [
         ({"damping": 0.1, "regularization": 0.01}, "regularization: give damping (λ) or"),
-        ({"damping": 0.0}, "damping: must be a finite number > 0, got 0.0"),
-        ({"damping": -0.1}, "damping: must be a finite number > 0, got -0.1"),
+        ({"damping": 0.0}, "damping: must be a finite number > 0 or None, got 0.0"),
+        ({"damping": -0.1}, "damping: must be a finite number > 0 or None, got -0.1"),
         ({"regularization": float("inf")}, "regularization: must be a finite number > 0"),
-        ({"damping": "a"}, "damping: must be a finite number > 0, got 'a'"),
+        ({"damping": "a"}, "damping: must be a finite number > 0 or None, got 'a'"),
     ],
 )
 def test_damping_options_refused(options: dict, message: str) -> None:

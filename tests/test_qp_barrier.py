@@ -28,13 +28,22 @@ WRIST_CONFIG = Path(__file__).parent.parent / "configs" / "arms" / "ur5_wrist.ya
 @pytest.mark.parametrize(
     ("option", "message"),
     [
-        ({"sigma_safe": -0.1}, "singularity_barrier.sigma_safe: must be >= 0, got -0.1"),
+        (
+            {"sigma_safe": -0.1},
+            "singularity_barrier.sigma_safe: must be a finite number >= 0, got -0.1",
+        ),
         ({"gain": 0.0}, "singularity_barrier.gain: must be in (0, 1], got 0.0"),
         ({"gain": 1.5}, "singularity_barrier.gain: must be in (0, 1], got 1.5"),
         ({"gain": float("nan")}, "singularity_barrier.gain: must be in (0, 1], got nan"),
-        ({"sigma_safe": "a"}, "singularity_barrier.sigma_safe: must be a number, got 'a'"),
+        (
+            {"sigma_safe": "a"},
+            "singularity_barrier.sigma_safe: must be a finite number >= 0, got 'a'",
+        ),
         ({"sigma": 0.1}, "singularity_barrier.sigma: unknown parameter; allowed: sigma_safe, gain"),
-        (0.02, "singularity_barrier: must be a mapping with sigma_safe, gain; got 0.02"),
+        (
+            0.02,
+            "singularity_barrier: must be a mapping {sigma_safe: ..., gain: ...} or None, got 0.02",
+        ),
     ],
 )
 def test_parameters_validated_in_one_line(option: object, message: str) -> None:

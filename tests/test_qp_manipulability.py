@@ -95,7 +95,7 @@ def test_in_a_run_it_keeps_the_arm_more_manipulable_on_average() -> None:
 
 
 def test_bad_parameters_name_the_field() -> None:
-    with pytest.raises(ParameterError, match="^manipulability_weight: must be >= 0"):
+    with pytest.raises(ParameterError, match="^manipulability_weight: must be a finite number >="):
         ManipulabilityQpBackend(manipulability_weight=-1.0)
     with pytest.raises(ParameterError, match="^damping: must be a finite number > 0"):
         ManipulabilityQpBackend(damping=0.0)

@@ -323,7 +323,7 @@ def test_jparse_orientation_gain_needs_a_pose_task() -> None:
     backend = JParseBackend(orientation_gain=2.0)
     with pytest.raises(ParameterError, match="^orientation_gain: applies to pose tasks only"):
         backend.bind(PlanarArm([1.0, 0.8]), 0.01)
-    with pytest.raises(ParameterError, match="^position_gain: must be >= 0"):
+    with pytest.raises(ParameterError, match="^position_gain: must be a finite number >= 0"):
         JParseBackend(position_gain=-1.0)
 
 

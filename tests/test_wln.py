@@ -138,7 +138,7 @@ def test_in_a_run_it_keeps_joints_off_their_limits_where_the_pseudoinverse_hits_
 
 
 def test_bad_damping_names_the_field() -> None:
-    with pytest.raises(ParameterError, match="^damping: must be >= 0"):
+    with pytest.raises(ParameterError, match="^damping: must be a finite number >= 0"):
         WeightedLeastNormBackend(damping=-0.1)
 
 

@@ -5,20 +5,21 @@ from __future__ import annotations
 import importlib
 import logging
 from collections.abc import Sequence
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitSpec
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.peer_models import JointMap, peer_urdf, pinocchio_model, root_link
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, Interval, check_params
 
-from .peer_backend import PeerBackend, peer_limits, require
+from .peer_backend import PEER_LIMIT_CONSTRAINTS, PeerBackend, peer_limits, require
 
 #: Name of the frame added at the end effector of the Drake plant.
 DRAKE_FRAME = "otmm_ee"
@@ -58,6 +59,10 @@ class DrakeBackend(PeerBackend):
 
     name = "drake"
     peer = "drake"
+    parameter_constraints: ClassVar[Constraints] = {
+        "stuck_scaling": Interval(Real, 0, 1, closed="left"),
+        **PEER_LIMIT_CONSTRAINTS,
+    }
 
     def __init__(
         self,
@@ -65,9 +70,8 @@ class DrakeBackend(PeerBackend):
         limits: bool | Sequence[LimitSpec] | None = None,
         limit_gain: float | None = None,
     ) -> None:
+        check_params(self, locals())
         require("drake", ["pydrake.multibody.inverse_kinematics", "pydrake.multibody.plant"])
-        if not 0.0 <= stuck_scaling < 1.0:
-            raise ParameterError("stuck_scaling", f"must be in [0, 1), got {stuck_scaling}")
         self.stuck_scaling = float(stuck_scaling)
         self.configure_limits(limits, limit_gain)
 

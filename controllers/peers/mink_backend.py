@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -21,8 +21,9 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import PeerBackend, peer_limits, require
+from .peer_backend import QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
@@ -66,6 +67,7 @@ class MinkBackend(PeerBackend):
 
     name = "mink"
     peer = "mink"
+    parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
 
     def __init__(
         self,
@@ -76,6 +78,7 @@ class MinkBackend(PeerBackend):
         limits: bool | Sequence[LimitSpec] | None = None,
         limit_gain: float | None = None,
     ) -> None:
+        check_params(self, locals())
         require("mink", ["mujoco", "mink"])
         self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Sequence
+from numbers import Real
 from typing import NamedTuple
 
 import numpy as np
@@ -29,11 +30,13 @@ import pinocchio as pin
 from otmm_qp.backends.backend import Backend, damping_weight
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
 from otmm_qp.limits import LimitSet, LimitSpec, PositionLimit, VelocityLimit, make_limits
+from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.peer_models import describe
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import task_rows
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Boolean, Constraints, InstanceOf, Interval
 
 #: The peers' Tikhonov weight μ when neither ``damping`` nor ``regularization`` is given.
 DEFAULT_REGULARIZATION = 1e-12
@@ -77,6 +80,21 @@ class PeerLimits(NamedTuple):
 
 #: The limit types the peers map one-to-one onto their own limits.
 PEER_LIMITS = (VelocityLimit, PositionLimit)
+
+_NON_NEGATIVE = Interval(Real, 0, None, closed="left")
+#: The declared constraints of the peers' ``limits`` and older ``limit_gain``.
+PEER_LIMIT_CONSTRAINTS: Constraints = {
+    "limits": [Boolean(), LIMITS, None],
+    "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
+}
+#: The declared constraints of the QP-based peers (pink, mink).
+QP_PEER_CONSTRAINTS: Constraints = {
+    "solver": InstanceOf((str,), "an installed qpsolvers backend name"),
+    "damping": [_NON_NEGATIVE, None],
+    "regularization": [_NON_NEGATIVE, None],
+    "lm_damping": _NON_NEGATIVE,
+    **PEER_LIMIT_CONSTRAINTS,
+}
 
 
 def peer_limit_set(
@@ -207,8 +225,6 @@ class PeerBackend(Backend):
         if solver not in qpsolvers.available_solvers:
             raise SolverNotFound(solver, qpsolvers.available_solvers)
         damping, regularization, lm_damping = weights
-        if not (np.isfinite(lm_damping) and lm_damping >= 0.0):
-            raise ParameterError("lm_damping", f"must be a finite number >= 0, got {lm_damping}")
         self.solver = solver
         self.regularization = damping_weight(damping, regularization, DEFAULT_REGULARIZATION)
         self.lm_damping = float(lm_damping)

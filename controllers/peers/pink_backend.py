@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -16,8 +16,9 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import PeerBackend, peer_limits, require
+from .peer_backend import QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -74,6 +75,7 @@ class PinkBackend(PeerBackend):
 
     name = "pink"
     peer = "pink"
+    parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
 
     def __init__(
         self,
@@ -84,6 +86,7 @@ class PinkBackend(PeerBackend):
         limits: bool | Sequence[LimitSpec] | None = None,
         limit_gain: float | None = None,
     ) -> None:
+        check_params(self, locals())
         require("pink", ["pink"])
         self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
 

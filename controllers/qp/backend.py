@@ -3,18 +3,27 @@ r"""QP differential inverse kinematics with joint limits (pink / mink style)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput, damping_weight
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import Box, LimitSpec, Row, make_limits, per_joint
+from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import (
+    ArrayOf,
+    Boolean,
+    Constraints,
+    Interval,
+    OneOf,
+    check_params,
+)
 
-from .box_backend import SOLVER_TOL, BoxQpBackend, QpStep
+from .box_backend import SOLVER, SOLVER_TOL, BoxQpBackend, QpStep
 from .formulation import BIG, QpFormulation, QpProblem, clip_into_box
 from .solvers import QpSession, available_solvers, make_session
 
@@ -24,6 +33,9 @@ POLICIES = ("raise", "hold", "dls")
 DEFAULT_REGULARIZATION = 1e-3
 
 __all__ = ["POLICIES", "InfeasiblePolicy", "QpBackend", "QpStep", "available_solvers"]
+
+#: ``damping`` λ or ``regularization`` μ of the QP backends: > 0, or None (the other / default).
+POSITIVE_OR_NONE = [Interval(Real, 0, None, closed="neither"), None]
 
 
 class QpBackend(BoxQpBackend):
@@ -75,6 +87,20 @@ class QpBackend(BoxQpBackend):
 
     name = "qp"
     policies = POLICIES
+    parameter_constraints: ClassVar[Constraints] = {
+        "damping": POSITIVE_OR_NONE,
+        "regularization": POSITIVE_OR_NONE,
+        "solver": SOLVER,
+        "limits": [LIMITS, None],
+        "posture_weight": Interval(Real, 0, None, closed="left"),
+        "posture_gain": Interval(Real, 0, None, closed="left", unit="1/s"),
+        "q_nominal": [ArrayOf(Interval(Real, None, None), per="joint"), None],
+        "infeasible_policy": OneOf(*POLICIES),
+        "fast_path": Boolean(),
+        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
+        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
+        "singularity_barrier": LEGACY_CONSTRAINTS["singularity_barrier"],
+    }
 
     def __init__(
         self,
@@ -91,6 +117,7 @@ class QpBackend(BoxQpBackend):
         acceleration_limit: float | Sequence[float] | None = None,
         singularity_barrier: object = None,
     ) -> None:
+        check_params(self, locals())
         mu = damping_weight(damping, regularization, DEFAULT_REGULARIZATION, positive=True)
         legacy = {
             "limit_gain": limit_gain,
@@ -98,8 +125,6 @@ class QpBackend(BoxQpBackend):
             "singularity_barrier": singularity_barrier,
         }
         super().__init__(solver, make_limits(limits, legacy), infeasible_policy)
-        if not (np.isfinite(posture_gain) and posture_gain >= 0.0):
-            raise ParameterError("posture_gain", f"must be >= 0, got {posture_gain}")
         self.formulation = QpFormulation(mu, float(posture_weight))
         self.posture_gain = float(posture_gain)
         self.q_nominal_param = None if q_nominal is None else np.asarray(q_nominal, dtype=float)

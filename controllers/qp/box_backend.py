@@ -15,11 +15,12 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from otmm_qp.backends.backend import Backend
-from otmm_qp.exceptions import InfeasibleProblem, ParameterError, SolverNotFound
+from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
 from otmm_qp.limits import LimitBox, LimitSet, Row
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import InstanceOf
 
 from .formulation import active_bound
 from .solvers import (
@@ -32,6 +33,10 @@ from .solvers import (
 
 #: Tolerance of :meth:`BoxQpBackend.classify` on a solver's answer (solvers stop at ~1e-10).
 SOLVER_TOL = 1e-7
+
+#: ``solver`` of the QP backends (whether it is installed is checked at construction, raising
+#: :class:`~otmm_qp.exceptions.SolverNotFound` with the installed ones).
+SOLVER = InstanceOf((str,), "a QP solver name (daqp, proxsuite, osqp, or a qpsolvers one)")
 
 
 class QpStep(NamedTuple):
@@ -97,11 +102,6 @@ class BoxQpBackend(Backend):
         installed = available_solvers() if solvers is None else solvers
         if solver not in installed:
             raise SolverNotFound(solver, installed)
-        if infeasible_policy not in self.policies:
-            raise ParameterError(
-                "infeasible_policy",
-                f"must be one of {', '.join(self.policies)}, got {infeasible_policy!r}",
-            )
         self.solver = solver
         self.limits = limits
         self.box = LimitBox(limits.boxes)

@@ -3,17 +3,20 @@ r"""Manipulability in the QP objective (Haviland & Corke 2021, NEO-style) on the
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput, damping_weight
+from otmm_qp.limits.options import LEGACY_CONSTRAINTS
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
 
 from ..manipulability import manipulability_gradient
-from ..secondary_tasks import finite_number
-from .backend import DEFAULT_REGULARIZATION, QpBackend
+from .backend import DEFAULT_REGULARIZATION, POLICIES, POSITIVE_OR_NONE, QpBackend
+from .box_backend import SOLVER
 
 
 class ManipulabilityQpBackend(QpBackend):
@@ -63,6 +66,16 @@ class ManipulabilityQpBackend(QpBackend):
     """
 
     name = "qp_manipulability"
+    parameter_constraints: ClassVar[Constraints] = {
+        "manipulability_weight": Interval(Real, 0, None, closed="left"),
+        "damping": POSITIVE_OR_NONE,
+        "regularization": POSITIVE_OR_NONE,
+        "solver": SOLVER,
+        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
+        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
+        "infeasible_policy": OneOf(*POLICIES),
+        "fast_path": Boolean(),
+    }
 
     def __init__(
         self,
@@ -75,7 +88,8 @@ class ManipulabilityQpBackend(QpBackend):
         infeasible_policy: Literal["raise", "hold", "dls"] = "raise",
         fast_path: bool = True,
     ) -> None:
-        weight = finite_number("manipulability_weight", manipulability_weight)
+        check_params(self, locals())
+        weight = float(manipulability_weight)
         mu = damping_weight(damping, regularization, DEFAULT_REGULARIZATION, positive=True)
         split = 0.5 * mu if weight > 0.0 else mu
         super().__init__(

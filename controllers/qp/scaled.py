@@ -3,7 +3,8 @@ r"""Direction-preserving QP differential IK after Drake's ``DoDifferentialInvers
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -12,11 +13,13 @@ import qpsolvers
 from otmm_qp.backends.backend import BackendOutput, rank_cutoff
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitSpec, make_limits
+from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, Interval, OneOf, check_params
 
-from .box_backend import SOLVER_TOL, BoxQpBackend, QpStep
+from .box_backend import SOLVER, SOLVER_TOL, BoxQpBackend, QpStep
 from .formulation import BIG, QpProblem, clip_into_box
 from .solvers import SESSIONS, Solution
 
@@ -115,6 +118,15 @@ class ScaledQpBackend(BoxQpBackend):
 
     name = "qp_scaled"
     policies = POLICIES
+    parameter_constraints: ClassVar[Constraints] = {
+        "solver": SOLVER,
+        "limits": [LIMITS, None],
+        "stuck_threshold": Interval(Real, 0, 1, closed="both"),
+        "regularization": Interval(Real, 0, None, closed="neither"),
+        "infeasible_policy": OneOf(*POLICIES),
+        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
+        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
+    }
 
     def __init__(
         self,
@@ -126,6 +138,7 @@ class ScaledQpBackend(BoxQpBackend):
         limit_gain: float | None = None,
         acceleration_limit: float | Sequence[float] | None = None,
     ) -> None:
+        check_params(self, locals())
         installed = set(qpsolvers.available_solvers) | set(SESSIONS)
         allowed = [s for s in SCALED_SOLVERS if s in installed]
         legacy = {"limit_gain": limit_gain, "acceleration_limit": acceleration_limit}
@@ -134,10 +147,6 @@ class ScaledQpBackend(BoxQpBackend):
             names = ", ".join(row.name for row in limit_set.rows)
             raise ParameterError("limits", f"qp_scaled takes box limits only, not {names}")
         super().__init__(solver, limit_set, infeasible_policy, allowed)
-        if not 0.0 <= stuck_threshold <= 1.0:
-            raise ParameterError("stuck_threshold", f"must be in [0, 1], got {stuck_threshold}")
-        if not (np.isfinite(regularization) and regularization > 0.0):
-            raise ParameterError("regularization", f"must be > 0, got {regularization}")
         self.stuck_threshold = float(stuck_threshold)
         self.regularization = float(regularization)
 

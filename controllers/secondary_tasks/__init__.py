@@ -10,11 +10,11 @@ import inspect
 from collections.abc import Mapping
 from typing import Any
 
-from otmm_qp.exceptions import ConfigError
+from otmm_qp.exceptions import ConfigError, ParameterError
 
 from .joint_limits import JointLimitTask, limit_distance_gradient
 from .posture import PostureTask
-from .secondary_task import SecondaryTask, finite_number
+from .secondary_task import SecondaryTask
 
 #: The secondary tasks by YAML name.
 SECONDARY_TASKS: dict[str, type[SecondaryTask]] = {
@@ -29,6 +29,7 @@ def secondary_task_from(spec: SecondaryTask | Mapping[str, Any] | None) -> Secon
     Raises:
         ConfigError: Not a mapping, no or an unknown ``type``, or an unknown parameter — one
             line naming ``secondary.<field>`` and what is allowed.
+        ParameterError: A value its declared constraints refuse (``secondary.<field>``).
     """
     if spec is None or isinstance(spec, SecondaryTask):
         return spec
@@ -49,7 +50,10 @@ def secondary_task_from(spec: SecondaryTask | Mapping[str, Any] | None) -> Secon
                 f"secondary.{key}",
                 f"unknown parameter of {kind!r}; allowed: {', '.join(allowed)}",
             )
-    return cls(**params)
+    try:
+        return cls(**params)
+    except ParameterError as error:
+        raise ParameterError(f"secondary.{error.field}", error.message) from None
 
 
 __all__ = [
@@ -57,7 +61,6 @@ __all__ = [
     "JointLimitTask",
     "PostureTask",
     "SecondaryTask",
-    "finite_number",
     "limit_distance_gradient",
     "secondary_task_from",
 ]

@@ -2,12 +2,16 @@ r"""Joint-limit avoidance task: descend the limit-distance cost of Liégeois (19
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
-from .secondary_task import SecondaryTask, finite_number
+from .secondary_task import SecondaryTask
 
 
 def limit_distance_gradient(theta: FloatArray, lower: FloatArray, upper: FloatArray) -> FloatArray:
@@ -43,9 +47,13 @@ class JointLimitTask(SecondaryTask):
     """
 
     name = "joint_limits"
+    parameter_constraints: ClassVar[Constraints] = {
+        "gain": Interval(Real, 0, None, closed="left"),
+    }
 
     def __init__(self, gain: float = 1.0) -> None:
-        self.gain = finite_number("secondary.gain", gain)
+        check_params(self, locals())
+        self.gain = float(gain)
 
     def joint_velocity(self, robot: Robot, state: KinematicState) -> FloatArray:
         """``−k ∇H(θ)`` [rad/s], shape ``(nv,)``."""

@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import DimensionError, ParameterError
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
-from .secondary_task import SecondaryTask, finite_number
+from .secondary_task import SecondaryTask
 
 
 class PostureTask(SecondaryTask):
@@ -31,6 +34,11 @@ class PostureTask(SecondaryTask):
     """
 
     name = "posture"
+    parameter_constraints: ClassVar[Constraints] = {
+        "gain": Interval(Real, 0, None, closed="left"),
+        "q_nominal": [ArrayOf(Interval(Real, None, None), per="joint"), None],
+        "max_speed": [Interval(Real, 0, None, closed="neither", unit="rad/s"), None],
+    }
 
     def __init__(
         self,
@@ -38,23 +46,12 @@ class PostureTask(SecondaryTask):
         q_nominal: Sequence[float] | None = None,
         max_speed: float | None = None,
     ) -> None:
-        self.gain = finite_number("secondary.gain", gain)
-        self.max_speed = (
-            math.inf
-            if max_speed is None
-            else finite_number("secondary.max_speed", max_speed, strict=True)
+        check_params(self, locals())
+        self.gain = float(gain)
+        self.max_speed = math.inf if max_speed is None else float(max_speed)
+        self.q_nominal: FloatArray | None = (
+            None if q_nominal is None else np.asarray(q_nominal, dtype=float)
         )
-        self.q_nominal: FloatArray | None = None
-        if q_nominal is not None:
-            try:
-                nominal = np.asarray(q_nominal, dtype=float)
-            except (TypeError, ValueError):
-                raise ParameterError(
-                    "secondary.q_nominal", f"must be a list of numbers, got {q_nominal!r:.40}"
-                ) from None
-            if nominal.ndim != 1 or not np.all(np.isfinite(nominal)):
-                raise ParameterError("secondary.q_nominal", "must be a list of finite numbers")
-            self.q_nominal = nominal
         self._nominal = self.q_nominal
 
     def bind(self, robot: Robot) -> None:

@@ -3,23 +3,9 @@ r"""The secondary-task interface: a desired joint velocity for the redundancy le
 from __future__ import annotations
 
 import abc
-import math
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-
-
-def finite_number(field: str, value: object, low: float = 0.0, strict: bool = False) -> float:
-    """``value`` as a float, or a :class:`ParameterError` naming ``field``.
-
-    Accepted: a finite number ``> low`` (``strict``) or ``>= low``; booleans are refused.
-    """
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ParameterError(field, f"must be a finite number, got {value!r:.40}")
-    if not (value > low if strict else value >= low):
-        raise ParameterError(field, f"must be {'>' if strict else '>='} {low:g}, got {value!r:.40}")
-    return float(value)
 
 
 class SecondaryTask(abc.ABC):
@@ -28,6 +14,10 @@ class SecondaryTask(abc.ABC):
     Backends with redundancy (task priority, J-PARSE's null-space term) project it into what
     the primary task leaves free. Being joint-space tasks (:math:`J_2 = I`), their own
     inverse is the identity, so Chiaverini's :math:`J_2^{\#}\dot x_2` is :math:`\dot q_2`.
+
+    A task declares ``parameter_constraints`` (:mod:`otmm_qp.validation`) and checks them in
+    ``__init__``; :func:`~otmm_qp_controllers.secondary_tasks.secondary_task_from` prefixes a
+    refused field with ``secondary.``.
     """
 
     #: Name used in YAML (``secondary: {type: NAME, ...}``).

@@ -17,27 +17,23 @@ overshoot the target velocity; it starts at rest (zero velocity and acceleration
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from numbers import Real
 from typing import Any, ClassVar
 
 import numpy as np
 
 from otmm_qp.conditioning.stage import CommandStage
-from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
+from otmm_qp.exceptions import ConfigError, DimensionError
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 __all__ = ["JerkLimitStage"]
 
 RUCKIG_HINT = "pip install ruckig"
 
 
-def _limits(name: str, value: float | Sequence[float]) -> FloatArray:
-    array = np.atleast_1d(np.asarray(value, dtype=float))
-    if array.ndim != 1 or not np.all(np.isfinite(array) & (array > 0.0)):
-        raise ParameterError(
-            name, f"must be a finite number > 0 or a list of them, got {value!r:.40}"
-        )
-    return array
+def _limit(unit: str) -> ArrayOf:
+    return ArrayOf(Interval(Real, 0, None, closed="neither", unit=unit), scalar=True, per="joint")
 
 
 class JerkLimitStage(CommandStage):
@@ -53,15 +49,20 @@ class JerkLimitStage(CommandStage):
     """
 
     name: ClassVar[str] = "jerk_limit"
+    parameter_constraints: ClassVar[Constraints] = {
+        "acceleration": _limit("rad/s²"),
+        "jerk": _limit("rad/s³"),
+    }
 
     def __init__(self, acceleration: float | list[float], jerk: float | list[float]) -> None:
+        check_params(self, locals())
         try:
             import ruckig
         except ImportError:
             raise ConfigError("type", f"ruckig is not installed; {RUCKIG_HINT}") from None
         self._ruckig = ruckig
-        self.acceleration = _limits("acceleration", acceleration)
-        self.jerk = _limits("jerk", jerk)
+        self.acceleration = np.atleast_1d(np.asarray(acceleration, dtype=float))
+        self.jerk = np.atleast_1d(np.asarray(jerk, dtype=float))
         self._generator: Any = None
 
     def reset(self, robot: Robot, dt: float) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 
 from otmm_qp.conditioning.stage import CommandStage
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints
 
 __all__ = ["PositionClipStage"]
 
@@ -27,6 +28,7 @@ class PositionClipStage(CommandStage):
     """Shorten each joint's step so that ``θ + q̇ dt`` stays within the position limits."""
 
     name: ClassVar[str] = "position_clip"
+    parameter_constraints: ClassVar[Constraints] = {}
 
     def reset(self, robot: Robot, dt: float) -> None:
         """Read the robot's position limits [rad or m]."""

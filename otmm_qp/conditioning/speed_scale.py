@@ -12,14 +12,14 @@ direction).
 
 from __future__ import annotations
 
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.conditioning.stage import CommandStage
-from otmm_qp.exceptions import ParameterError
-from otmm_qp.plants.plant import check_number
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["SpeedScaleStage"]
 
@@ -32,11 +32,13 @@ class SpeedScaleStage(CommandStage):
     """
 
     name: ClassVar[str] = "speed_scale"
+    parameter_constraints: ClassVar[Constraints] = {
+        "margin": Interval(Real, 0, 1, closed="right"),
+    }
 
     def __init__(self, margin: float = 1.0) -> None:
-        self.margin = check_number("margin", margin)
-        if self.margin > 1.0:
-            raise ParameterError("margin", f"must be in (0, 1], got {self.margin:g}")
+        check_params(self, locals())
+        self.margin = float(margin)
         self.limit = np.zeros(0)
 
     def reset(self, robot: Robot, dt: float) -> None:

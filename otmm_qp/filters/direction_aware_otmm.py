@@ -2,21 +2,20 @@ r"""Direction-aware OTMM: suppress the singular component only while it drives Ï
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.filters.otmm import DEFAULT_SIGMA_S, OtmmFilter, _full_left_basis
-from otmm_qp.filters.p_functions import DEFAULT_GAIN_FACTOR
+from otmm_qp.filters.p_functions import DEFAULT_GAIN_FACTOR, check_gain_cap
 from otmm_qp.filters.task_filter import FilterOutput, FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.singularity import sigma_min_rate
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
-
-def _finite(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+_FINITE = Interval(Real, None, None)
 
 
 class DirectionAwareOtmmFilter(TaskFilter):
@@ -75,6 +74,14 @@ class DirectionAwareOtmmFilter(TaskFilter):
     """
 
     name = "otmm_directional"
+    parameter_constraints: ClassVar[Constraints] = {
+        **{key: OtmmFilter.parameter_constraints[key] for key in ("sigma_s", "p", "p_params")},
+        "max_gain": [Interval(Real, 0, None, closed="neither"), None],
+        "approach_rate": Interval(Real, None, None, unit="1/s"),
+        "leave_rate": Interval(Real, None, None, unit="1/s"),
+        "sigma_decay": Interval(Real, 0, 1, closed="right"),
+        "taper_sigma": [Interval(Real, 0, None, closed="left"), None],
+    }
 
     def __init__(
         self,
@@ -87,30 +94,20 @@ class DirectionAwareOtmmFilter(TaskFilter):
         sigma_decay: float = 0.5,
         taper_sigma: float | None = None,
     ) -> None:
+        check_params(self, locals())
         self._base = OtmmFilter(sigma_s=sigma_s, p=p, p_params=p_params, corank=1)
         self.sigma_s = self._base.sigma_s
         if max_gain is None:
             max_gain = DEFAULT_GAIN_FACTOR / self.sigma_s
-        if not (_finite(max_gain) and max_gain > 0.0):
-            raise ParameterError("max_gain", f"must be a finite number > 0, got {max_gain!r}")
-        if max_gain * self.sigma_s < 1.0 - 1e-12:
-            raise ParameterError(
-                "max_gain",
-                f"must be >= 1/sigma_s = {1.0 / self.sigma_s:.6g} so p is continuous at "
-                f"sigma_s, got {max_gain!r}",
-            )
-        if not _finite(approach_rate):
-            raise ParameterError("approach_rate", f"must be a finite number, got {approach_rate!r}")
-        if not (_finite(leave_rate) and leave_rate > approach_rate):
+        check_gain_cap(max_gain, self.sigma_s)
+        if not leave_rate > approach_rate:
             raise ParameterError(
                 "leave_rate",
                 f"must be a finite number > approach_rate ({approach_rate!r}), got {leave_rate!r}",
             )
-        if not (_finite(sigma_decay) and 0.0 < sigma_decay <= 1.0):
-            raise ParameterError("sigma_decay", f"must be in (0, 1], got {sigma_decay!r}")
         if taper_sigma is None:
             taper_sigma = self.sigma_s
-        if not (_finite(taper_sigma) and 0.0 <= taper_sigma <= self.sigma_s):
+        if not taper_sigma <= self.sigma_s:
             raise ParameterError(
                 "taper_sigma", f"must be in [0, sigma_s = {self.sigma_s:g}], got {taper_sigma!r}"
             )

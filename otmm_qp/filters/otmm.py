@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from functools import partial
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -15,10 +16,58 @@ from otmm_qp.filters.task_filter import FilterOutput, FilterReport, TaskFilter
 from otmm_qp.paper import SIGMA_S
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import (
+    Constraints,
+    InstanceOf,
+    Interval,
+    OneOf,
+    RegisteredName,
+    check_params,
+    constraints_of,
+)
 
 PFunction = Callable[[float, float], float]
 #: σ_S when a config gives none (the paper's value).
 DEFAULT_SIGMA_S = SIGMA_S
+#: ``p``: the name of a registered p-function (which names exist is checked when loading).
+P_NAME = RegisteredName(registry.P_FUNCTIONS, "p-function")
+#: ``p_params``: the p-function's parameters, checked against its declarations.
+P_PARAMS = InstanceOf((Mapping,), "a mapping of the p-function's parameters")
+
+
+def p_function(name: str, params: Mapping[str, Any] | None, sigma_s: float) -> PFunction:
+    """The p-function ``name`` with ``params`` bound, every check done once, here.
+
+    Unknown parameters, the p-function's declared constraints, its ``cross_check`` (e.g.
+    ``bounded``'s ``max_gain ≥ 1/σ_S``) and, for a p-function that declares nothing, a dry
+    call at ``σ_S/2``.
+
+    Raises:
+        ConfigError: Unknown p-function or parameter; ``p_params.<field>`` for a refused value.
+    """
+    given = dict(params or {})
+    try:
+        function = registry.load(registry.P_FUNCTIONS, name)
+    except Exception as error:  # PluginNotFound / PluginValidationError
+        raise ConfigError("p", str(error)) from error
+    registry.check_parameters(function, given, "p_params", reserved=("s", "sigma_s"))
+    try:
+        check_params(function, given)
+        cross_check = getattr(function, "cross_check", None)
+        if cross_check is not None:
+            cross_check(sigma_s, **given)
+    except ParameterError as error:
+        raise ParameterError(f"p_params.{error.field}", error.message) from None
+    bound: PFunction = partial(function, **given) if given else function
+    if constraints_of(function) is None:  # undeclared (third party): try it once
+        try:
+            bound(0.5 * sigma_s, sigma_s)
+        except (TypeError, ValueError) as error:
+            culprit = registry.blame_parameter(function, given)
+            if culprit is None:
+                raise ParameterError("p_params", f"invalid for p {name!r}: {error}") from None
+            raise ParameterError(f"p_params.{culprit[0]}", culprit[1]) from None
+    return bound
 
 
 class OtmmFilter(TaskFilter):
@@ -46,6 +95,12 @@ class OtmmFilter(TaskFilter):
     """
 
     name = "otmm"
+    parameter_constraints: ClassVar[Constraints] = {
+        "sigma_s": Interval(Real, 0, None, closed="neither"),
+        "p": P_NAME,
+        "p_params": [P_PARAMS, None],
+        "corank": OneOf(1, "all"),
+    }
 
     def __init__(
         self,
@@ -54,35 +109,11 @@ class OtmmFilter(TaskFilter):
         p_params: Mapping[str, Any] | None = None,
         corank: int | str = 1,
     ) -> None:
-        if not (isinstance(sigma_s, int | float) and np.isfinite(sigma_s) and sigma_s > 0.0):
-            raise ParameterError("sigma_s", f"must be a finite number > 0, got {sigma_s!r}")
-        if corank not in (1, "all"):
-            raise ParameterError("corank", f"must be 1 or 'all', got {corank!r}")
+        check_params(self, locals())
         self.sigma_s = float(sigma_s)
         self.corank = corank
         self.p_name = p
-        given: object = p  # configs are untyped: check the type of what arrived
-        if not isinstance(given, str):
-            available = ", ".join(registry.available(registry.P_FUNCTIONS))
-            raise ParameterError("p", f"must be a p-function name ({available}), got {given!r:.40}")
-        if p_params is not None and not isinstance(p_params, Mapping):
-            raise ParameterError(
-                "p_params", f"must be a mapping of parameters, got {p_params!r:.40}"
-            )
-        params = dict(p_params or {})
-        try:
-            function = registry.load(registry.P_FUNCTIONS, p)
-        except Exception as error:  # PluginNotFound / PluginValidationError
-            raise ConfigError("p", str(error)) from error
-        registry.check_parameters(function, params, "p_params", reserved=("s", "sigma_s"))
-        self.p_function: PFunction = partial(function, **params) if params else function
-        try:
-            self.p_function(0.5 * self.sigma_s, self.sigma_s)  # validates p_params early
-        except (TypeError, ValueError) as error:
-            culprit = registry.blame_parameter(function, params)
-            if culprit is None:
-                raise ParameterError("p_params", f"invalid for p {p!r}: {error}") from None
-            raise ParameterError(f"p_params.{culprit[0]}", culprit[1]) from None
+        self.p_function = p_function(p, p_params, self.sigma_s)
 
     def p(self, sigma: float) -> float:
         """Suppression level ``k·p(σ)`` in [0, 1]: 0 above σ_S."""

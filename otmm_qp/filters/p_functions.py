@@ -13,13 +13,18 @@ Along the singular direction the joint speed per unit command is
 for ``a < 1`` (sqrt, cbrt) it grows without bound as ``s → 0``.
 
 * ``bounded``: :math:`p = \max(p_{base}(s), 1 - G s)`, gain ``(1-p)/σ ≤ G`` (issue 11).
+
+The parameters are declared (:func:`otmm_qp.validation.declare`) and checked once, when the
+OTMM filter is built (:func:`check_gain_cap` too), never per step: called directly with
+values the declarations refuse, a p-function's result is undefined.
 """
 
 from __future__ import annotations
 
-import math
+from numbers import Real
 
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.validation import Interval, OneOf, declare
 
 
 def _ratio(s: float, sigma_s: float) -> float:
@@ -41,10 +46,12 @@ def cbrt(s: float, sigma_s: float) -> float:
     return 1.0 - _ratio(s, sigma_s) ** (1.0 / 3.0)
 
 
+_EXPONENT = Interval(Real, 0, None, closed="neither")
+
+
+@declare({"a": _EXPONENT})
 def power(s: float, sigma_s: float, a: float = 1.0) -> float:
     """``p = 1 − (s/σ_S)^a`` with exponent ``a > 0``."""
-    if not a > 0.0:
-        raise ParameterError("a", f"exponent must be > 0, got {a}")
     return 1.0 - _ratio(s, sigma_s) ** a
 
 
@@ -54,6 +61,40 @@ DEFAULT_GAIN_FACTOR = 2.0
 _BASES = {"linear": linear, "sqrt": sqrt, "cbrt": cbrt, "power": power}
 
 
+def check_gain_cap(max_gain: float, sigma_s: float) -> None:
+    r"""The one check of a gain cap against σ_S: :math:`G \ge 1/\sigma_S` (continuity at σ_S).
+
+    Used by ``bounded`` (:func:`check_bounded`) and the direction-aware OTMM filter.
+
+    Args:
+        max_gain: G [rad/(task unit)], a finite number > 0.
+        sigma_s: σ_S > 0 [task units].
+
+    Raises:
+        ParameterError: ``max_gain`` below ``1/σ_S`` (beyond rounding).
+    """
+    if max_gain * sigma_s < 1.0 - 1e-12:
+        raise ParameterError(
+            "max_gain",
+            f"must be >= 1/sigma_s = {1.0 / sigma_s:.6g} so p is continuous at sigma_s, "
+            f"got {max_gain!r}",
+        )
+
+
+def check_bounded(sigma_s: float, max_gain: float | None = None, **_: object) -> None:
+    """``bounded``'s cross-parameter check, run once by the filter: :func:`check_gain_cap`."""
+    if max_gain is not None:
+        check_gain_cap(max_gain, sigma_s)
+
+
+@declare(
+    {
+        "max_gain": [Interval(Real, 0, None, closed="neither"), None],
+        "base": OneOf(*_BASES),
+        "a": _EXPONENT,
+    },
+    cross_check=check_bounded,
+)
 def bounded(
     s: float,
     sigma_s: float,
@@ -83,24 +124,11 @@ def bounded(
         max_gain: Gain cap G ≥ 1/σ_S [rad/(task unit)]; ``None``: ``2/σ_S``.
         base: Base p: ``linear``, ``sqrt``, ``cbrt`` or ``power``.
         a: Exponent of the ``power`` base (ignored by the others).
+
+    Declared and checked once by the filter (:func:`check_bounded`), not on each call.
     """
     if max_gain is None:
         max_gain = DEFAULT_GAIN_FACTOR / sigma_s
-    elif not (
-        isinstance(max_gain, int | float)
-        and not isinstance(max_gain, bool)
-        and math.isfinite(max_gain)
-        and max_gain > 0.0
-    ):
-        raise ParameterError("max_gain", f"must be a finite number > 0, got {max_gain!r}")
-    if max_gain * sigma_s < 1.0 - 1e-12:
-        raise ParameterError(
-            "max_gain",
-            f"must be >= 1/sigma_s = {1.0 / sigma_s:.6g} so p is continuous at sigma_s, "
-            f"got {max_gain!r}",
-        )
-    function = _BASES.get(base)
-    if function is None:
-        raise ParameterError("base", f"must be one of {', '.join(_BASES)}, got {base!r}")
+    function = _BASES[base]
     p_base = power(s, sigma_s, a) if function is power else function(s, sigma_s)
     return max(p_base, 1.0 - max_gain * s)

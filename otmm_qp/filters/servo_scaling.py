@@ -2,12 +2,16 @@ r"""MoveIt Servo's singularity velocity scaling, written from the algorithm's de
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.filters.task_filter import FilterOutput, FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, OneOf, check_params
 
 
 class ServoScalingFilter(TaskFilter):
@@ -62,6 +66,13 @@ class ServoScalingFilter(TaskFilter):
     """
 
     name = "servo_scaling"
+    parameter_constraints: ClassVar[Constraints] = {
+        "lower_threshold": Interval(Real, 1, None, closed="left"),
+        "hard_stop_threshold": Interval(Real, 1, None, closed="left"),
+        "leaving_factor": Interval(Real, 1, None, closed="left"),
+        "lookahead": Interval(Real, 0, None, closed="neither", unit="rad"),
+        "rule": OneOf("band", "moveit"),
+    }
 
     def __init__(
         self,
@@ -71,23 +82,14 @@ class ServoScalingFilter(TaskFilter):
         lookahead: float = 1e-3,
         rule: str = "band",
     ) -> None:
-        if rule not in ("band", "moveit"):
-            raise ParameterError("rule", f"must be 'band' or 'moveit', got {rule!r}")
+        check_params(self, locals())
         self.rule = rule
-        if not (np.isfinite(lower_threshold) and lower_threshold >= 1.0):
-            raise ParameterError(
-                "lower_threshold", f"must be a finite number >= 1, got {lower_threshold}"
-            )
-        if not (np.isfinite(hard_stop_threshold) and hard_stop_threshold > lower_threshold):
+        if not hard_stop_threshold > lower_threshold:
             raise ParameterError(
                 "hard_stop_threshold",
                 f"must be finite and > lower_threshold ({lower_threshold}), "
                 f"got {hard_stop_threshold}",
             )
-        if not (np.isfinite(leaving_factor) and leaving_factor >= 1.0):
-            raise ParameterError("leaving_factor", f"must be >= 1, got {leaving_factor}")
-        if not (np.isfinite(lookahead) and lookahead > 0.0):
-            raise ParameterError("lookahead", f"must be > 0 [rad], got {lookahead}")
         self.lower_threshold = float(lower_threshold)
         self.hard_stop_threshold = float(hard_stop_threshold)
         self.leaving_factor = float(leaving_factor)

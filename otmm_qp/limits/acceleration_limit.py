@@ -3,13 +3,14 @@ r"""The joint-acceleration limit around the previous velocity: ``|q̇ − q̇_pr
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import Box, Limit, per_joint
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 __all__ = ["AccelerationLimit"]
 
@@ -31,15 +32,16 @@ class AccelerationLimit(Limit):
 
     name: ClassVar[str] = "acceleration"
     priority: ClassVar[int] = 2
+    parameter_constraints: ClassVar[Constraints] = {
+        "a_max": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
+            scalar=True,
+            per="joint",
+        ),
+    }
 
     def __init__(self, a_max: float | Sequence[float]) -> None:
-        try:
-            acc = np.asarray(a_max, dtype=float)
-        except (TypeError, ValueError) as error:
-            message = f"must be numbers > 0 [rad/s²], got {a_max!r:.40}"
-            raise ParameterError("a_max", message) from error
-        if acc.ndim > 1 or acc.size == 0 or not np.all(acc > 0.0):
-            raise ParameterError("a_max", f"must be > 0 [rad/s²], got {acc.tolist()!r:.40}")
+        check_params(self, locals())
         self.a_max = a_max
 
     def bind(self, robot: Robot, dt: float) -> None:

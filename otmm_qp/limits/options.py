@@ -28,13 +28,23 @@ Giving ``limits`` together with an older key is refused with one line saying wha
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from numbers import Real
 from typing import Any, NamedTuple
 
 from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.limits.limit import BaseLimit, Limit, RowLimit
 from otmm_qp.limits.velocity_limit import VelocityLimit
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval
 
-__all__ = ["FIELD", "LEGACY_KEYS", "LimitSet", "LimitSpec", "make_limits"]
+__all__ = [
+    "FIELD",
+    "LEGACY_CONSTRAINTS",
+    "LEGACY_KEYS",
+    "LIMITS",
+    "LimitSet",
+    "LimitSpec",
+    "make_limits",
+]
 
 #: The config key of the limits list.
 FIELD = "limits"
@@ -49,6 +59,30 @@ LEGACY_KEYS: dict[str, tuple[str, str | None]] = {
 
 #: What a ``limits`` entry may be: a limit object or ``{type: NAME, **params}``.
 LimitSpec = BaseLimit | Mapping[str, Any]
+
+#: The declared constraint of a backend's ``limits`` parameter (each entry is checked by
+#: :func:`make_limits`, naming ``limits.<i>``).
+LIMITS = InstanceOf(
+    (Sequence,), "a list of {type: NAME, ...} entries", exclude=(str, bytes, Mapping)
+)
+
+#: The declared constraints of the older keys (each backend declares the ones it takes).
+LEGACY_CONSTRAINTS: Constraints = {
+    "limit_gain": [Interval(Real, 0, 1, closed="right"), None],
+    "acceleration_limit": [
+        ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
+            scalar=True,
+            per="joint",
+        ),
+        None,
+    ],
+    "max_speed": [Interval(Real, 0, None, closed="neither", unit="rad/s"), None],
+    "singularity_barrier": [
+        InstanceOf((Mapping, BaseLimit), "a mapping {sigma_safe: ..., gain: ...}"),
+        None,
+    ],
+}
 
 
 class LimitSet(NamedTuple):

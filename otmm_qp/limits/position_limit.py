@@ -2,14 +2,14 @@ r"""The joint-position limit as a velocity box: ``(g/dt)(θ_min − θ) ≤ q̇ 
 
 from __future__ import annotations
 
-import math
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import Box, Limit
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["PositionLimit"]
 
@@ -32,15 +32,10 @@ class PositionLimit(Limit):
 
     name: ClassVar[str] = "position"
     priority: ClassVar[int] = 1
+    parameter_constraints: ClassVar[Constraints] = {"gain": Interval(Real, 0, 1, closed="right")}
 
     def __init__(self, gain: float = 0.5) -> None:
-        if not (
-            isinstance(gain, int | float)
-            and not isinstance(gain, bool)
-            and math.isfinite(gain)
-            and 0.0 < gain <= 1.0
-        ):
-            raise ParameterError("gain", f"must be in (0, 1], got {gain!r:.40}")
+        check_params(self, locals())
         self.gain = float(gain)
 
     def bind(self, robot: Robot, dt: float) -> None:

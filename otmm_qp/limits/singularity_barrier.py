@@ -28,16 +28,16 @@ unchanged), which costs one directional derivative :math:`\dot\sigma(\dot q)`; t
 
 from __future__ import annotations
 
-import math
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import Box, Row, RowLimit
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.singularity import sigma_min_gradient, sigma_min_rate
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["SingularityBarrier"]
 
@@ -57,15 +57,13 @@ class SingularityBarrier(RowLimit):
     """
 
     name: ClassVar[str] = "singularity_barrier"
+    parameter_constraints: ClassVar[Constraints] = {
+        "sigma_safe": Interval(Real, 0, None, closed="left"),
+        "gain": Interval(Real, 0, 1, closed="right"),
+    }
 
     def __init__(self, sigma_safe: float = 0.02, gain: float = 1.0) -> None:
-        for field, value in (("sigma_safe", sigma_safe), ("gain", gain)):
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ParameterError(field, f"must be a number, got {value!r:.40}")
-        if not (math.isfinite(sigma_safe) and sigma_safe >= 0.0):
-            raise ParameterError("sigma_safe", f"must be >= 0, got {sigma_safe}")
-        if not (math.isfinite(gain) and 0.0 < gain <= 1.0):
-            raise ParameterError("gain", f"must be in (0, 1], got {gain}")
+        check_params(self, locals())
         self.sigma_safe = float(sigma_safe)
         self.gain = float(gain)
 

@@ -2,14 +2,14 @@ r"""The joint-speed limit: ``−q̇_max ≤ q̇ ≤ q̇_max`` [rad/s]."""
 
 from __future__ import annotations
 
-import math
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import Box, Limit
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["VelocityLimit"]
 
@@ -34,17 +34,12 @@ class VelocityLimit(Limit):
     name: ClassVar[str] = "velocity"
     priority: ClassVar[int] = 0
     static: ClassVar[bool] = True
+    parameter_constraints: ClassVar[Constraints] = {
+        "max_speed": [Interval(Real, 0, None, closed="neither", unit="rad/s"), None],
+    }
 
     def __init__(self, max_speed: float | None = None) -> None:
-        if max_speed is not None and not (
-            isinstance(max_speed, int | float)
-            and not isinstance(max_speed, bool)
-            and math.isfinite(max_speed)
-            and max_speed > 0.0
-        ):
-            raise ParameterError(
-                "max_speed", f"must be a finite number > 0 [rad/s], got {max_speed!r:.40}"
-            )
+        check_params(self, locals())
         self.max_speed = None if max_speed is None else float(max_speed)
 
     def bind(self, robot: Robot, dt: float) -> None:

@@ -8,12 +8,14 @@ r"""Command latency: the command reaches the servos ``steps`` control periods la
 from __future__ import annotations
 
 from collections import deque
+from numbers import Integral
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.plants.plant import Plant, check_number
+from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["DelayPlant"]
 
@@ -26,9 +28,13 @@ class DelayPlant(Plant):
     """
 
     name: ClassVar[str] = "delay"
+    parameter_constraints: ClassVar[Constraints] = {
+        "steps": Interval(Integral, 0, None, closed="left"),
+    }
 
     def __init__(self, steps: int = 1) -> None:
-        self.steps = int(check_number("steps", steps, strict=False, integer=True))
+        check_params(self, locals())
+        self.steps = int(steps)
         self._queue: deque[FloatArray] = deque()
 
     def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints
 
 if TYPE_CHECKING:  # the simulation package imports this one
     from otmm_qp.simulation.integrator import Integrator
@@ -23,6 +24,7 @@ class IdealPlant(Plant):
 
     name: ClassVar[str] = "ideal"
     body: ClassVar[bool] = True
+    parameter_constraints: ClassVar[Constraints] = {}
 
     def __init__(self) -> None:
         self._robot: Robot | None = None

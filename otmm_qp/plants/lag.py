@@ -17,13 +17,15 @@ The servo starts at rest (:math:`\dot q^{a}_{-1} = 0`).
 from __future__ import annotations
 
 import math
+from numbers import Real
 from typing import ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.exceptions import ParameterError
-from otmm_qp.plants.plant import Plant, check_number
+from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, OneOf, check_params
 
 __all__ = ["LagPlant"]
 
@@ -37,11 +39,14 @@ class LagPlant(Plant):
     """
 
     name: ClassVar[str] = "lag"
+    parameter_constraints: ClassVar[Constraints] = {
+        "tau": Interval(Real, 0, None, closed="neither", unit="s"),
+        "update": OneOf("exact", "euler"),
+    }
 
     def __init__(self, tau: float, update: Literal["exact", "euler"] = "exact") -> None:
-        self.tau = check_number("tau", tau)
-        if update not in ("exact", "euler"):
-            raise ParameterError("update", f"must be 'exact' or 'euler', got {update!r:.40}")
+        check_params(self, locals())
+        self.tau = float(tau)
         self.update = update
         self.alpha = 1.0
         self._actual = np.zeros(0)

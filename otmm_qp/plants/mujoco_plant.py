@@ -30,14 +30,16 @@ stores why and stops the run (its other runs keep their results).
 from __future__ import annotations
 
 import math
+from numbers import Real
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
-from otmm_qp.plants.plant import Plant, PlantStep, check_number
+from otmm_qp.exceptions import ConfigError, RobotLoadError
+from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
 
 __all__ = ["MujocoPlant"]
 
@@ -71,6 +73,15 @@ class MujocoPlant(Plant):
 
     name: ClassVar[str] = "mujoco"
     body: ClassVar[bool] = True
+    parameter_constraints: ClassVar[Constraints] = {
+        "frequency": Interval(Real, 0, None, closed="neither", unit="Hz"),
+        "damping_ratio": Interval(Real, 0, None, closed="neither"),
+        "timestep": Interval(Real, 0, None, closed="neither", unit="s"),
+        "gravity": Boolean(),
+        "compensation": OneOf("gravity", "none"),
+        "effort_limit": [Interval(Real, 0, None, closed="neither", unit="N·m or N"), None],
+        "unstable_speed": Interval(Real, 0, None, closed="neither", unit="rad/s"),
+    }
 
     def __init__(
         self,
@@ -82,21 +93,14 @@ class MujocoPlant(Plant):
         effort_limit: float | None = None,
         unstable_speed: float = 100.0,
     ) -> None:
-        self.frequency = check_number("frequency", frequency)
-        self.damping_ratio = check_number("damping_ratio", damping_ratio)
-        self.timestep = check_number("timestep", timestep)
-        if not isinstance(gravity, bool):
-            raise ParameterError("gravity", f"must be true or false, got {gravity!r:.40}")
-        self.gravity = gravity
-        if compensation not in ("gravity", "none"):
-            raise ParameterError(
-                "compensation", f"must be 'gravity' or 'none', got {compensation!r:.40}"
-            )
+        check_params(self, locals())
+        self.frequency = float(frequency)
+        self.damping_ratio = float(damping_ratio)
+        self.timestep = float(timestep)
+        self.gravity = bool(gravity)
         self.compensation = compensation
-        self.effort_limit = (
-            None if effort_limit is None else check_number("effort_limit", effort_limit)
-        )
-        self.unstable_speed = check_number("unstable_speed", unstable_speed)
+        self.effort_limit = None if effort_limit is None else float(effort_limit)
+        self.unstable_speed = float(unstable_speed)
         try:
             import mujoco
         except ImportError:

@@ -25,10 +25,9 @@ import abc
 import math
 from typing import ClassVar, NamedTuple
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 
-__all__ = ["Plant", "PlantStep", "check_number"]
+__all__ = ["Plant", "PlantStep"]
 
 
 class PlantStep(NamedTuple):
@@ -52,26 +51,6 @@ class PlantStep(NamedTuple):
     saturated: bool = False
     stable: bool = True
     detail: str = ""
-
-
-def check_number(
-    name: str, value: object, minimum: float = 0.0, strict: bool = True, integer: bool = False
-) -> float:
-    """``value`` as a finite number above ``minimum`` (``> `` when strict, else ``>=``).
-
-    Raises:
-        ParameterError: Naming ``name``, the value and the allowed range.
-    """
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ParameterError(name, f"must be a number, got {value!r:.40}")
-    number = float(value)
-    if integer and number != int(number):
-        raise ParameterError(name, f"must be an integer, got {number}")
-    ok = number > minimum if strict else number >= minimum
-    if not math.isfinite(number) or not ok:
-        relation = ">" if strict else ">="
-        raise ParameterError(name, f"must be a finite number {relation} {minimum:g}, got {number}")
-    return number
 
 
 class Plant(abc.ABC):

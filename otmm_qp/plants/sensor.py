@@ -12,12 +12,14 @@ rounding. The noise is drawn from ``numpy.random.default_rng(seed)``, restarted 
 from __future__ import annotations
 
 import math
+from numbers import Integral, Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.plants.plant import Plant, check_number
+from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 __all__ = ["SensorPlant"]
 
@@ -35,10 +37,17 @@ class SensorPlant(Plant):
     name: ClassVar[str] = "sensor"
     exact_measurement: ClassVar[bool] = False
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "noise": Interval(Real, 0, None, closed="left", unit="rad"),
+        "counts": [Interval(Integral, 0, None, closed="neither"), None],
+        "seed": Interval(Integral, 0, None, closed="left"),
+    }
+
     def __init__(self, noise: float = 0.0, counts: int | None = None, seed: int = 0) -> None:
-        self.noise = check_number("noise", noise, strict=False)
-        self.counts = None if counts is None else int(check_number("counts", counts, integer=True))
-        self.seed = int(check_number("seed", seed, strict=False, integer=True))
+        check_params(self, locals())
+        self.noise = float(noise)
+        self.counts = None if counts is None else int(counts)
+        self.seed = int(seed)
         self.quantum = 2.0 * math.pi / self.counts if self.counts is not None else 0.0
         self._rng = np.random.default_rng(self.seed)
         self._robot: Robot | None = None

@@ -1,23 +1,61 @@
-"""``otmm-qp list``: every registered plugin, by group."""
+"""``otmm-qp list``: every registered plugin, by group; ``--params``: what each one accepts.
+
+The default listing reads only the entry points (no plugin is imported, so it stays fast).
+``--params`` loads the plugins and prints, under each, its parameters with their defaults and
+declared constraints (:func:`otmm_qp.validation.parameters`); a third-party plugin that declares
+none lists its signature with ``not declared``. ``--params NAME ...`` restricts it to the
+plugins of those names.
+"""
 
 from __future__ import annotations
 
 import argparse
 
 from otmm_qp import registry
+from otmm_qp.exceptions import OtmmError
+from otmm_qp.validation import parameters
 
 NAME = "list"
-HELP = "list registered robots, filters, p-functions, backends, trajectories"
+HELP = "list registered robots, filters, p-functions, backends, trajectories, ..."
+
+#: Parameters the framework passes itself, hidden from the listing, by group.
+RESERVED = {registry.P_FUNCTIONS: ("s", "sigma_s")}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """No options."""
+    """``--params [NAME ...]``."""
+    parser.add_argument(
+        "--params",
+        nargs="*",
+        metavar="NAME",
+        default=None,
+        help="also show each plugin's parameters, defaults and allowed values "
+        "(only the named plugins when names are given)",
+    )
+
+
+def parameter_lines(group: str, name: str) -> list[str]:
+    """The indented ``name = default: allowed`` lines of one plugin (or why it cannot load)."""
+    try:
+        plugin = registry.load(group, name)
+    except OtmmError as error:
+        return [f"      (cannot be loaded: {error})"]
+    rows = parameters(plugin, RESERVED.get(group, ()))
+    if not rows:
+        return ["      (no parameters)"]
+    return [f"      {row.name} = {row.default}: {row.allowed}" for row in rows]
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print every registered plugin, by group."""
+    """Print every registered plugin, by group (with ``--params``, their parameters)."""
+    wanted: list[str] | None = args.params
     for group in registry.GROUPS:
         print(f"{group.rsplit('.', 1)[-1]}:")
         for name, spec in registry.specs(group).items():
+            if wanted and name not in wanted:
+                continue
             print(f"  {name:<24} {spec.value}  [{spec.distribution}]")
+            if wanted is not None:
+                for line in parameter_lines(group, name):
+                    print(line)
     return 0

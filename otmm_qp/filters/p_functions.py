@@ -31,16 +31,19 @@ def _ratio(s: float, sigma_s: float) -> float:
     return min(max(s / sigma_s, 0.0), 1.0)
 
 
+@declare({})
 def linear(s: float, sigma_s: float) -> float:
     """``p = 1 − s/σ_S``."""
     return 1.0 - _ratio(s, sigma_s)
 
 
+@declare({})
 def sqrt(s: float, sigma_s: float) -> float:
     """``p = 1 − (s/σ_S)^(1/2)``."""
     return 1.0 - _ratio(s, sigma_s) ** 0.5
 
 
+@declare({})
 def cbrt(s: float, sigma_s: float) -> float:
     """``p = 1 − (s/σ_S)^(1/3)``."""
     return 1.0 - _ratio(s, sigma_s) ** (1.0 / 3.0)

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from numbers import Real
+from typing import ClassVar
+
 import numpy as np
 
 from otmm_qp.backends.backend import Backend, BackendOutput, truncated_pseudoinverse_apply
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 class ClippedPseudoInverseBackend(Backend):
@@ -32,12 +35,15 @@ class ClippedPseudoInverseBackend(Backend):
     """
 
     name = "example_clipped_pinv"
+    #: What each parameter accepts: checked once by ``check_params``, listed by
+    #: ``otmm-qp list --params``.
+    parameter_constraints: ClassVar[Constraints] = {
+        "max_speed": Interval(Real, 0, None, closed="neither", unit="rad/s"),
+        "rcond": Interval(Real, 0, 1, closed="left"),
+    }
 
     def __init__(self, max_speed: float = 2.0, rcond: float = 1e-10) -> None:
-        if not (np.isfinite(max_speed) and max_speed > 0.0):
-            raise ParameterError("max_speed", f"must be a finite number > 0, got {max_speed}")
-        if not 0.0 <= rcond < 1.0:
-            raise ParameterError("rcond", f"must be in [0, 1), got {rcond}")
+        check_params(self, locals())  # first: a bad value is refused before anything else
         self.max_speed = float(max_speed)
         self.rcond = float(rcond)
 

@@ -3,7 +3,7 @@ r"""Error-dependent damping (Sugihara 2011): the damped least squares of Levenbe
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar
 
@@ -13,7 +13,7 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params, check_renamed
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 
@@ -72,12 +72,12 @@ class ErrorDampedLeastSquaresBackend(Backend):
         error_horizon: τ > 0 [s] of :math:`e = \tau\dot x_w`; ``None``: the control period dt.
         max_lambda_sq: Upper bound of λ² > 0 [task units²/rad²] (``None``: none), so a huge
             error cannot freeze the arm. Formerly ``max_damping`` (the same number).
-        **removed: Only the old names ``damping_floor`` / ``max_damping``, refused with
-            their new name (:data:`RENAMED`).
+
+    The old names ``damping_floor`` / ``max_damping`` are refused in a config with their new
+    name (:data:`RENAMED`, ``removed_parameters``).
 
     Raises:
-        ParameterError: A value out of range, ``max_lambda_sq < lambda_sq_floor``, or an
-            old parameter name.
+        ParameterError: A value out of range, or ``max_lambda_sq < lambda_sq_floor``.
     """
 
     name = "dls_error"
@@ -87,6 +87,7 @@ class ErrorDampedLeastSquaresBackend(Backend):
         "error_horizon": [Interval(Real, 0, None, closed="neither", unit="s"), None],
         "max_lambda_sq": [_POSITIVE, None],
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = RENAMED
 
     def __init__(
         self,
@@ -94,9 +95,7 @@ class ErrorDampedLeastSquaresBackend(Backend):
         lambda_sq_floor: float = 1e-3,
         error_horizon: float | None = None,
         max_lambda_sq: float | None = None,
-        **removed: object,
     ) -> None:
-        check_renamed(self, removed, RENAMED)
         check_params(self, locals())
         self._per_row = not isinstance(error_weight, int | float)
         self.error_weight = np.atleast_1d(np.asarray(error_weight, dtype=float))

@@ -3,14 +3,14 @@ r"""σ-floored Levenberg–Marquardt damping: otmm-qp's own strategy (issue 20).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar
 
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.validation import Constraints, Interval, check_params, check_renamed
+from otmm_qp.validation import Constraints, Interval, check_params
 
 from .damping import damped_least_squares
 from .dls_error import ErrorDampedLeastSquaresBackend
@@ -61,7 +61,6 @@ class SigmaLevenbergMarquardtBackend(Backend):
         sigma_threshold: ε > 0 [task units/rad] below which the σ term starts.
         lambda_sq_floor: :math:`\bar w_N = \lambda^2_{floor}` ≥ 0 [task units²/rad²]
             (formerly ``damping_floor``, the same number).
-        **removed: Only the old name ``damping_floor``, refused with its new name.
     """
 
     name = "sigma_lm"
@@ -73,6 +72,7 @@ class SigmaLevenbergMarquardtBackend(Backend):
         "sigma_threshold": Interval(Real, 0, None, closed="neither"),
         "lambda_sq_floor": Interval(Real, 0, None, closed="left"),
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = RENAMED
 
     def __init__(
         self,
@@ -82,9 +82,7 @@ class SigmaLevenbergMarquardtBackend(Backend):
         max_damping: float = 0.05,
         sigma_threshold: float = 0.05,
         lambda_sq_floor: float = 0.0,
-        **removed: object,
     ) -> None:
-        check_renamed(self, removed, RENAMED)
         check_params(self, locals())
         cap = None if max_error_damping is None else float(max_error_damping)
         self.error = ErrorDampedLeastSquaresBackend(

@@ -3,7 +3,7 @@ r"""Saturation in the Null Space with greedy task scaling (Flacco, De Luca, Khat
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar
 
@@ -12,7 +12,7 @@ import numpy as np
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitBox, LimitSpec, make_limits
-from otmm_qp.limits.options import LIMITS
+from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -95,25 +95,25 @@ class SnsBackend(Backend):
         limits: Box limits or ``{type: NAME, ...}`` entries (:mod:`otmm_qp.limits.options`);
             None: the robot's speed limit and ``{type: position, gain: 1}``.
         rcond: Relative truncation threshold of the pseudoinverses, in ``[0, 1)``.
-        max_speed: Older form of ``limits: [{type: velocity, max_speed: s}]`` [rad/s].
     """
 
     name = "sns"
     parameter_constraints: ClassVar[Constraints] = {
         "limits": [LIMITS, None],
         "rcond": Interval(Real, 0, 1, closed="left"),
-        "max_speed": [Interval(Real, 0, None, closed="neither", unit="rad/s"), None],
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = removed_limit_keys(
+        "max_speed", default_gain=1.0
+    )
     enforces_limits = True
 
     def __init__(
         self,
         limits: Sequence[LimitSpec] | None = None,
         rcond: float = 1e-10,
-        max_speed: float | None = None,
     ) -> None:
         check_params(self, locals())
-        self.limits = make_limits(limits, {"max_speed": max_speed}, default_gain=1.0)
+        self.limits = make_limits(limits, default_gain=1.0)
         if self.limits.rows:
             names = ", ".join(row.name for row in self.limits.rows)
             raise ParameterError("limits", f"sns takes box limits only, not {names}")

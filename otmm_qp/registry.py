@@ -24,6 +24,7 @@ from typing import Any
 from otmm_qp.exceptions import (
     ConfigError,
     OtmmError,
+    ParameterError,
     PeerUnavailable,
     PluginNotFound,
     PluginValidationError,
@@ -201,8 +202,12 @@ def check_parameters(
         field: Config path used in the message.
         reserved: Parameters the framework passes itself (hidden from the user).
 
+    A plugin's ``removed_parameters`` (old name → one line saying what to write instead, e.g.
+    a rename) are refused with that line rather than as unknown.
+
     Raises:
         ConfigError: Naming the unknown parameter and the allowed ones.
+        ParameterError: A removed parameter, with its replacement.
     """
     signature = inspect.signature(factory)
     accepted = [
@@ -213,7 +218,10 @@ def check_parameters(
     if any(p.kind == p.VAR_KEYWORD for p in signature.parameters.values()):
         return
     allowed = [a for a in accepted if a not in reserved]
+    removed: Mapping[str, str] = getattr(factory, "removed_parameters", None) or {}
     for key in params:
+        if key in removed and key not in allowed:  # renamed or removed: say what to write
+            raise ParameterError(f"{field}.{key}", removed[key])
         if key not in allowed:
             raise ConfigError(
                 f"{field}.{key}", f"unknown parameter; allowed: {', '.join(allowed) or '(none)'}"

@@ -23,6 +23,10 @@ booleans are not numbers. Checks that relate parameters to each other (``max_gai
 ``w0`` xor ``sigma_threshold``) stay explicit code in one place of the plugin; checks that
 need the robot (a per-joint list of length ``nv``) happen at ``bind``.
 
+A parameter that was renamed or removed is listed in the plugin's
+``removed_parameters: ClassVar[Mapping[str, str]]`` (old name → one line saying what to write
+instead); :func:`otmm_qp.registry.check_parameters` refuses it with that line.
+
 ``otmm-qp list --params`` shows the declarations (:func:`parameters`).
 """
 
@@ -51,7 +55,6 @@ __all__ = [
     "ParameterInfo",
     "RegisteredName",
     "check_params",
-    "check_renamed",
     "constraints_of",
     "declare",
     "describe",
@@ -358,25 +361,6 @@ def check_params(owner: object, params: Mapping[str, object]) -> None:
         value = params[name]
         if not any(option.is_satisfied_by(value) for option in _options(spec)):
             raise ParameterError(name, f"must be {describe(spec)}, got {_shown(value)}")
-
-
-def check_renamed(owner: object, extra: Mapping[str, object], renamed: Mapping[str, str]) -> None:
-    """Refuse the keys a constructor caught in ``**removed``: old names say their new name.
-
-    Args:
-        owner: The plugin (its signature lists the allowed names).
-        extra: The keyword arguments the signature does not name.
-        renamed: Old name → one line saying the new name and the conversion.
-
-    Raises:
-        ParameterError: ``old: renamed to ...`` for an old name, else ``key: unknown
-            parameter; allowed: ...``.
-    """
-    for key in extra:
-        if key in renamed:
-            raise ParameterError(key, renamed[key])
-        allowed = ", ".join(p.name for p in signature_parameters(owner))
-        raise ParameterError(key, f"unknown parameter; allowed: {allowed}")
 
 
 F = TypeVar("F", bound=Callable[..., Any])

@@ -89,9 +89,14 @@ def test_singular_states_are_exactly_singular() -> None:
 @pytest.mark.parametrize("acceleration", [None, 20.0])
 def test_qp_fast_path_equals_qp(name: str, acceleration: float | None) -> None:
     robot = ROBOTS[name]
-    fast = QpBackend(solver="quadprog", acceleration_limit=acceleration, infeasible_policy="dls")
+    limits = (
+        None
+        if acceleration is None
+        else [{"type": "position", "gain": 0.5}, {"type": "acceleration", "a_max": acceleration}]
+    )
+    fast = QpBackend(solver="quadprog", limits=limits, infeasible_policy="dls")
     slow = QpBackend(
-        solver="quadprog", acceleration_limit=acceleration, infeasible_policy="dls",
+        solver="quadprog", limits=limits, infeasible_policy="dls",
         fast_path=False,
     )  # fmt: skip
     fast.bind(robot, DT)

@@ -103,7 +103,10 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
     ),
     # item 5: per-controller shapes, found before compute
     "acceleration_limit length": (
-        GOOD.replace("backend: {type: pinv}", QP[:-1] + ", acceleration_limit: [1, 2, 3]}"),
+        GOOD.replace(
+            "backend: {type: pinv}",
+            QP[:-1] + ", limits: [{type: acceleration, a_max: [1, 2, 3]}]}",
+        ),
         r"controllers\.0 \(OTMM\)",
     ),
     "q_nominal length": (

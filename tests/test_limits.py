@@ -101,9 +101,12 @@ def test_limit_box_keeps_priority_order_and_names_the_conflict() -> None:
     assert "#0" in conflict([], Box(np.ones(1), np.zeros(1)), ())
 
 
-def test_older_keys_are_the_limits_form_bit_for_bit() -> None:
-    """limit_gain/acceleration_limit/singularity_barrier = the same limits list, same run."""
-    old = QpBackend(limit_gain=0.3, acceleration_limit=20.0, infeasible_policy="hold")
+def test_the_limits_order_does_not_change_the_run() -> None:
+    """Boxes intersect: listing the limits in another order gives the same run, bit for bit."""
+    old = QpBackend(
+        limits=[{"type": "position", "gain": 0.3}, {"type": "acceleration", "a_max": 20.0}],
+        infeasible_policy="hold",
+    )
     new = QpBackend(
         limits=[
             {"type": "acceleration", "a_max": 20.0},
@@ -126,14 +129,47 @@ def test_older_keys_are_the_limits_form_bit_for_bit() -> None:
             q, prev = q + DT * out.qdot, out.qdot
         runs.append(np.array(qdots))
     np.testing.assert_array_equal(runs[0], runs[1])
-    barrier = make_limits(None, {"singularity_barrier": {"sigma_safe": 0.01}})
+    barrier = make_limits([{"type": "singularity_barrier", "sigma_safe": 0.01}])
     assert isinstance(barrier.rows[0], SingularityBarrier) and barrier.rows[0].sigma_safe == 0.01
+    default = make_limits(None, default_gain=1.0)
+    assert [type(limit) for limit in default.boxes] == [VelocityLimit, PositionLimit]
+    assert default.boxes[1].gain == 1.0  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(
+    ("backend", "key", "value", "write"),
+    [
+        ("qp", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
+        (
+            "qp",
+            "acceleration_limit",
+            20.0,
+            "limits: [{type: position, gain: 0.5}, {type: acceleration, a_max: A}]",
+        ),
+        ("qp_scaled", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
+        ("qp_manipulability", "acceleration_limit", 20.0, "{type: acceleration, a_max: A}]"),
+        ("pink", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
+        (
+            "sns",
+            "max_speed",
+            1.0,
+            "limits: [{type: velocity, max_speed: S}, {type: position, gain: 1}]",
+        ),
+    ],
+)
+def test_older_keys_are_refused_saying_what_to_write(
+    backend: str, key: str, value: float, write: str
+) -> None:
+    with pytest.raises(ParameterError) as info:
+        registry.create(registry.BACKENDS, backend, {key: value}, "backend")
+    message = str(info.value)
+    assert message.startswith(f"backend.{key}: removed (limits have one form): write ")
+    assert write in message and "\n" not in message
 
 
 @pytest.mark.parametrize(
     ("call", "message"),
     [
-        (lambda: QpBackend(limits=[], limit_gain=0.5), "limit_gain: give it inside limits"),
         (lambda: QpBackend(limits={"type": "position"}), "limits: must be a list of"),
         (lambda: QpBackend(limits=[{"gain": 0.5}]), "limits.0: must be a mapping {type: NAME"),
         (
@@ -142,12 +178,14 @@ def test_older_keys_are_the_limits_form_bit_for_bit() -> None:
         ),
         (lambda: QpBackend(limits=[{"type": "position", "gain": 2}]), "limits.0.gain: must be in"),
         (lambda: QpBackend(limits=[{"type": "position", "g": 1}]), "limits.0.g: unknown parameter"),
-        (lambda: QpBackend(limit_gain=0.0), "limit_gain: must be in (0, 1] or None, got 0.0"),
         (
-            lambda: QpBackend(acceleration_limit=-1.0),
-            "acceleration_limit: must be a finite number > 0 [rad/s²]",
+            lambda: QpBackend(limits=[{"type": "acceleration", "a_max": -1.0}]),
+            "limits.0.a_max: must be a finite number > 0 [rad/s²]",
         ),
-        (lambda: SnsBackend(max_speed=float("inf")), "max_speed: must be a finite number > 0"),
+        (
+            lambda: SnsBackend(limits=[{"type": "velocity", "max_speed": float("inf")}]),
+            "limits.0.max_speed: must be a finite number > 0",
+        ),
         (lambda: SnsBackend(limits=[{"type": "singularity_barrier"}]), "limits: sns takes box"),
         (lambda: ScaledQpBackend(limits=[SingularityBarrier()]), "limits: qp_scaled takes box"),
     ],

@@ -46,7 +46,8 @@ def cases(draw: st.DrawFn) -> tuple[PlanarArm, np.ndarray, np.ndarray, np.ndarra
 @given(cases(), st.booleans())
 def test_bounds_never_violated(case: tuple, accelerate: bool) -> None:
     arm, theta, xdot, prev = case
-    backend = QpBackend(solver="quadprog", acceleration_limit=50.0 if accelerate else None)
+    limits = [{"type": "position", "gain": 0.5}, {"type": "acceleration", "a_max": 50.0}]
+    backend = QpBackend(solver="quadprog", limits=limits if accelerate else None)
     backend.bind(arm, DT)
     state = KinematicState.compute(arm, theta)
     if accelerate:  # |q̇_prev| ≤ a_max·dt keeps 0 in every box: always feasible

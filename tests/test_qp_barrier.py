@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
+from otmm_qp import registry
 from otmm_qp.config.load import parse_config
-from otmm_qp.exceptions import ParameterError
+from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.metrics import MetricSettings
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.runner import prepare_experiment, run_experiment
@@ -30,26 +31,46 @@ WRIST_CONFIG = Path(__file__).parent.parent / "configs" / "arms" / "ur5_wrist.ya
     [
         (
             {"sigma_safe": -0.1},
-            "singularity_barrier.sigma_safe: must be a finite number >= 0, got -0.1",
+            "limits.1.sigma_safe: must be a finite number >= 0, got -0.1",
         ),
-        ({"gain": 0.0}, "singularity_barrier.gain: must be in (0, 1], got 0.0"),
-        ({"gain": 1.5}, "singularity_barrier.gain: must be in (0, 1], got 1.5"),
-        ({"gain": float("nan")}, "singularity_barrier.gain: must be in (0, 1], got nan"),
+        ({"gain": 0.0}, "limits.1.gain: must be in (0, 1], got 0.0"),
+        ({"gain": 1.5}, "limits.1.gain: must be in (0, 1], got 1.5"),
+        ({"gain": float("nan")}, "limits.1.gain: must be in (0, 1], got nan"),
         (
             {"sigma_safe": "a"},
-            "singularity_barrier.sigma_safe: must be a finite number >= 0, got 'a'",
+            "limits.1.sigma_safe: must be a finite number >= 0, got 'a'",
         ),
-        ({"sigma": 0.1}, "singularity_barrier.sigma: unknown parameter; allowed: sigma_safe, gain"),
+        ({"sigma": 0.1}, "limits.1.sigma: unknown parameter; allowed: sigma_safe, gain"),
         (
             0.02,
-            "singularity_barrier: must be a mapping {sigma_safe: ..., gain: ...} or None, got 0.02",
+            "limits.1: must be a mapping {type: NAME, ...}, got 0.02",
         ),
     ],
 )
 def test_parameters_validated_in_one_line(option: object, message: str) -> None:
-    with pytest.raises(ParameterError) as info:
-        QpBackend(singularity_barrier=option)  # type: ignore[arg-type]
+    entry = {"type": "singularity_barrier", **option} if isinstance(option, dict) else option
+    with pytest.raises(ConfigError) as info:
+        QpBackend(limits=[{"type": "position", "gain": 0.5}, entry])  # type: ignore[list-item]
     assert str(info.value) == message
+
+
+def test_the_older_key_says_what_to_write() -> None:
+    with pytest.raises(ParameterError) as info:
+        registry.create(
+            registry.BACKENDS, "qp", {"singularity_barrier": {"sigma_safe": 0.02}}, "backend"
+        )
+    assert str(info.value) == (
+        "backend.singularity_barrier: removed (limits have one form): write limits: "
+        "[{type: position, gain: 0.5}, {type: singularity_barrier, sigma_safe: S, gain: G}] "
+        "instead (the velocity limit is always added)"
+    )
+
+
+def barrier_qp(**barrier: float) -> QpBackend:
+    """``qp`` with its default position limit and the singularity barrier."""
+    return QpBackend(
+        limits=[{"type": "position", "gain": 0.5}, {"type": "singularity_barrier", **barrier}]
+    )
 
 
 def wrist_run(
@@ -74,7 +95,7 @@ def wrist_run(
 def test_row_holds_whenever_feasible(gain: float) -> None:
     """dt·σ̇_min(q̇) ≥ −γ(σ − σ_safe) at every step where some q̇ in the box satisfies it."""
     sigma_safe = 0.02
-    backend = QpBackend(singularity_barrier={"sigma_safe": sigma_safe, "gain": gain})
+    backend = barrier_qp(sigma_safe=sigma_safe, gain=gain)
     theta0 = np.array([0.0, -1.2, 1.5, -1.8, 0.3, 0.0])
     feasible = active = 0
     for state, qdot, status, bounds in wrist_run(backend, theta0):
@@ -101,7 +122,7 @@ def test_without_barrier_the_run_crosses_the_singularity() -> None:
 def test_barrier_inactive_far_from_singularity_changes_nothing() -> None:
     """Small commands on a regular Panda: the row never binds and q̇ is plain qp's, bit for bit."""
     panda = PinocchioArm(name="panda", task="pose")
-    plain, barrier = QpBackend(), QpBackend(singularity_barrier={"sigma_safe": 0.01})
+    plain, barrier = QpBackend(), barrier_qp(sigma_safe=0.01)
     plain.bind(panda, DT)
     barrier.bind(panda, DT)
     rng = np.random.default_rng(0)
@@ -117,7 +138,7 @@ def test_barrier_inactive_far_from_singularity_changes_nothing() -> None:
 
 def test_exactly_singular_start_is_a_normal_input() -> None:
     """From θ5 = 0 (σ_min ≈ 1e-17 < σ_safe) the barrier pushes σ_min up, never NaN."""
-    backend = QpBackend(singularity_barrier={"sigma_safe": 0.02})
+    backend = barrier_qp(sigma_safe=0.02)
     theta0 = np.array([0.0, -1.2, 1.5, -1.8, 0.0, 0.0])
     records = wrist_run(backend, theta0, steps=60)
     first_state, _, first_status, _ = records[0]
@@ -127,7 +148,7 @@ def test_exactly_singular_start_is_a_normal_input() -> None:
 
 
 def test_step_with_row_equals_pure_problem_from_scratch() -> None:
-    backend = QpBackend(singularity_barrier={"sigma_safe": 0.02})
+    backend = barrier_qp(sigma_safe=0.02)
     theta0 = np.array([0.0, -1.2, 1.5, -1.8, 0.3, 0.0])
     backend.bind(UR5, DT)
     checked = 0
@@ -161,7 +182,10 @@ def test_ur5_wrist_scenario_keeps_sigma_min_near_sigma_safe() -> None:
             "backend": {
                 "type": "qp",
                 "damping": 1.0e-3,
-                "singularity_barrier": {"sigma_safe": 0.02, "gain": 1.0},
+                "limits": [
+                    {"type": "position", "gain": 0.5},
+                    {"type": "singularity_barrier", "sigma_safe": 0.02, "gain": 1.0},
+                ],
             },
         },
     ]

@@ -76,7 +76,6 @@ def test_on_target_and_away_from_singularities_it_is_the_pseudoinverse() -> None
         ({"max_damping": float("nan")}, "max_damping: must be a finite number"),
         ({"sigma_threshold": -1.0}, "sigma_threshold: must be a finite number > 0"),
         ({"lambda_sq_floor": -1.0}, "lambda_sq_floor: must be a finite number >= 0"),
-        ({"damping_floor": 1e-4}, "damping_floor: renamed to lambda_sq_floor"),
         ({"error_horizon": 0.0}, "error_horizon: must be a finite number > 0"),
     ],
 )

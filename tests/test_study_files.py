@@ -85,7 +85,17 @@ HOSTILE: dict[str, tuple[str | bytes, str]] = {
         r"generators.0.attempts: 1e\+09 exceeds limits.max_generator_budget",
     ),
     "wrong-length acceleration_limit": (
-        _with(controllers=[{"name": "qp", "backend": {"type": "qp", "acceleration_limit": [1.0]}}]),
+        _with(
+            controllers=[
+                {
+                    "name": "qp",
+                    "backend": {
+                        "type": "qp",
+                        "limits": [{"type": "acceleration", "a_max": [1.0]}],
+                    },
+                }
+            ]
+        ),
         r"robots.0.controllers.0 \(qp\): ",
     ),
 }  # fmt: skip

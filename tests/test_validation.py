@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from otmm_qp import registry
 from otmm_qp.cli import main
-from otmm_qp.exceptions import ParameterError
+from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.validation import (
     ArrayOf,
     Boolean,
@@ -26,7 +26,6 @@ from otmm_qp.validation import (
     Interval,
     OneOf,
     check_params,
-    check_renamed,
     constraints_of,
     describe,
     parameters,
@@ -210,16 +209,18 @@ def test_check_params_ignores_undeclared_and_accepts_any_option() -> None:
         check_params(owner, {"x": "a" * 500})
 
 
-def test_check_renamed() -> None:
+def test_removed_parameters_are_refused_with_their_replacement() -> None:
     class Renamed:
-        def __init__(self, new: float = 1.0, **removed: object) -> None:
-            check_renamed(self, removed, {"old": "renamed to new (the same number)"})
+        removed_parameters: ClassVar[dict[str, str]] = {"old": "renamed to new (the same number)"}
 
-    Renamed(new=2.0)
-    with pytest.raises(ParameterError, match=r"^old: renamed to new \(the same number\)$"):
-        Renamed(old=2.0)
-    with pytest.raises(ParameterError, match="^olf: unknown parameter; allowed: new$"):
-        Renamed(olf=2.0)
+        def __init__(self, new: float = 1.0) -> None:
+            self.new = new
+
+    registry.check_parameters(Renamed, {"new": 2.0}, "backend")
+    with pytest.raises(ParameterError, match=r"^backend\.old: renamed to new \(the same number\)$"):
+        registry.check_parameters(Renamed, {"old": 2.0}, "backend")
+    with pytest.raises(ConfigError, match=r"^backend\.olf: unknown parameter; allowed: new$"):
+        registry.check_parameters(Renamed, {"olf": 2.0}, "backend")
 
 
 # --- every built-in plugin ------------------------------------------------------------------

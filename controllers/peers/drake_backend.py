@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import Any, ClassVar
 
@@ -19,7 +19,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.validation import Constraints, Interval, check_params
 
-from .peer_backend import PEER_LIMIT_CONSTRAINTS, PeerBackend, peer_limits, require
+from .peer_backend import PEER_LIMIT_CONSTRAINTS, PEER_REMOVED, PeerBackend, peer_limits, require
 
 #: Name of the frame added at the end effector of the Drake plant.
 DRAKE_FRAME = "otmm_ee"
@@ -50,7 +50,6 @@ class DrakeBackend(PeerBackend):
             ``θ_min ≤ θ + q̇·dt ≤ θ_max`` is given the limits ``θ ± g·(θ_max − θ)`` each step,
             so it bounds ``q̇`` by ``g(θ_max − θ)/dt`` as ``qp`` does; ``true`` / None: both,
             gain 0.5; ``false``: none.
-        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: pydrake is not installed.
@@ -63,17 +62,17 @@ class DrakeBackend(PeerBackend):
         "stuck_scaling": Interval(Real, 0, 1, closed="left"),
         **PEER_LIMIT_CONSTRAINTS,
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
 
     def __init__(
         self,
         stuck_scaling: float = 0.01,
         limits: bool | Sequence[LimitSpec] | None = None,
-        limit_gain: float | None = None,
     ) -> None:
         check_params(self, locals())
         require("drake", ["pydrake.multibody.inverse_kinematics", "pydrake.multibody.plant"])
         self.stuck_scaling = float(stuck_scaling)
-        self.configure_limits(limits, limit_gain)
+        self.configure_limits(limits)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Parse the URDF into a ``MultibodyPlant`` and set up the DiffIK parameters."""

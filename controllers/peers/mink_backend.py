@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -23,7 +23,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
+from .peer_backend import PEER_REMOVED, QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
@@ -57,7 +57,6 @@ class MinkBackend(PeerBackend):
         limits: The ``limits`` list of ``qp`` restricted to ``velocity`` (mink's
             ``VelocityLimit``) and ``position`` (``ConfigurationLimit`` with ``gain``);
             ``true`` / None: both, gain 0.5; ``false``: none.
-        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: mink or mujoco is not installed.
@@ -68,6 +67,7 @@ class MinkBackend(PeerBackend):
     name = "mink"
     peer = "mink"
     parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
+    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
 
     def __init__(
         self,
@@ -76,11 +76,10 @@ class MinkBackend(PeerBackend):
         regularization: float | None = None,
         lm_damping: float = 0.0,
         limits: bool | Sequence[LimitSpec] | None = None,
-        limit_gain: float | None = None,
     ) -> None:
         check_params(self, locals())
         require("mink", ["mujoco", "mink"])
-        self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
+        self.configure_qp(solver, (damping, regularization, lm_damping), limits)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build the MuJoCo model, check it against Pinocchio, set up task and limits.

@@ -30,7 +30,7 @@ import pinocchio as pin
 from otmm_qp.backends.backend import Backend, damping_weight
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
 from otmm_qp.limits import LimitSet, LimitSpec, PositionLimit, VelocityLimit, make_limits
-from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
+from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.peer_models import describe
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -82,11 +82,10 @@ class PeerLimits(NamedTuple):
 PEER_LIMITS = (VelocityLimit, PositionLimit)
 
 _NON_NEGATIVE = Interval(Real, 0, None, closed="left")
-#: The declared constraints of the peers' ``limits`` and older ``limit_gain``.
-PEER_LIMIT_CONSTRAINTS: Constraints = {
-    "limits": [Boolean(), LIMITS, None],
-    "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
-}
+#: The declared constraint of the peers' ``limits``.
+PEER_LIMIT_CONSTRAINTS: Constraints = {"limits": [Boolean(), LIMITS, None]}
+#: The older key the peers took, refused with the ``limits`` list to write instead.
+PEER_REMOVED = removed_limit_keys("limit_gain")
 #: The declared constraints of the QP-based peers (pink, mink).
 QP_PEER_CONSTRAINTS: Constraints = {
     "solver": InstanceOf((str,), "an installed qpsolvers backend name"),
@@ -97,9 +96,7 @@ QP_PEER_CONSTRAINTS: Constraints = {
 }
 
 
-def peer_limit_set(
-    limits: bool | Sequence[LimitSpec] | None, limit_gain: float | None, peer: str
-) -> LimitSet:
+def peer_limit_set(limits: bool | Sequence[LimitSpec] | None, peer: str) -> LimitSet:
     """The :class:`~otmm_qp.limits.LimitSet` of a peer adapter's ``limits`` option.
 
     ``limits`` is the list form of :mod:`otmm_qp.limits.options`, or ``true`` / None (the
@@ -112,7 +109,7 @@ def peer_limit_set(
     if limits is False:
         return LimitSet((), ())
     entries = None if limits is None or limits is True else limits
-    made = make_limits(entries, {"limit_gain": limit_gain})
+    made = make_limits(entries)
     for limit in made.all:
         if type(limit) not in PEER_LIMITS:
             raise ParameterError(
@@ -188,15 +185,13 @@ class PeerBackend(Backend):
         target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
         return target
 
-    def configure_limits(
-        self, limits: bool | Sequence[LimitSpec] | None, limit_gain: float | None
-    ) -> None:
+    def configure_limits(self, limits: bool | Sequence[LimitSpec] | None) -> None:
         """Validate and store the limits (:func:`peer_limit_set`); read back at :meth:`bind`.
 
         Raises:
             ParameterError: See :func:`peer_limit_set`.
         """
-        self.limit_set = peer_limit_set(limits, limit_gain, self.peer)
+        self.limit_set = peer_limit_set(limits, self.peer)
         self.enforces_limits = bool(self.limit_set.boxes)
 
     def configure_qp(
@@ -204,7 +199,6 @@ class PeerBackend(Backend):
         solver: str,
         weights: tuple[float | None, float | None, float],
         limits: bool | Sequence[LimitSpec] | None,
-        limit_gain: float | None,
     ) -> None:
         """Validate and store the settings shared by the QP-based peers (pink, mink).
 
@@ -214,7 +208,6 @@ class PeerBackend(Backend):
                 weight is μ (``damping`` gives μ = λ², :func:`damping_weight`; 10⁻¹² when
                 neither is given) and its Levenberg–Marquardt damping ``lm_damping ≥ 0``.
             limits: The ``limits`` option (:func:`peer_limit_set`).
-            limit_gain: Older form of ``{type: position, gain: g}``.
 
         Raises:
             SolverNotFound: ``solver`` is not an installed qpsolvers backend.
@@ -228,7 +221,7 @@ class PeerBackend(Backend):
         self.solver = solver
         self.regularization = damping_weight(damping, regularization, DEFAULT_REGULARIZATION)
         self.lm_damping = float(lm_damping)
-        self.configure_limits(limits, limit_gain)
+        self.configure_limits(limits)
 
     def orientation_weight(self) -> float:
         """1 when the task commands the angular velocity (pose tasks), else 0."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -18,7 +18,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
+from .peer_backend import PEER_REMOVED, QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -44,7 +44,7 @@ class PinkBackend(PeerBackend):
 
     Each step pink solves (``Δq = q̇·dt``, ``e = −ẋ·dt``, ``W`` the task weight, ``J`` the
     commanded rows of the world-aligned frame Jacobian; see
-    :mod:`otmm_qp.robots.velocity_task`) — ``qp``'s problem with ``λ = μ``, ``g`` = ``limit_gain``:
+    :mod:`otmm_qp.robots.velocity_task`) — ``qp``'s problem with ``λ = μ``, ``g`` the position gain:
 
     .. math::
         \min_{\Delta q}\ \|W(J\Delta q + e)\|^2 + \mu\|\Delta q\|^2
@@ -65,7 +65,6 @@ class PinkBackend(PeerBackend):
             ``VelocityLimit``, the model's speed limits capped by ``max_speed``) and
             ``position`` (``ConfigurationLimit`` with ``gain``); ``true`` / None: both, gain
             0.5; ``false``: none.
-        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
 
     Raises:
         PeerUnavailable: pink is not installed.
@@ -76,6 +75,7 @@ class PinkBackend(PeerBackend):
     name = "pink"
     peer = "pink"
     parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
+    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
 
     def __init__(
         self,
@@ -84,11 +84,10 @@ class PinkBackend(PeerBackend):
         regularization: float | None = None,
         lm_damping: float = 0.0,
         limits: bool | Sequence[LimitSpec] | None = None,
-        limit_gain: float | None = None,
     ) -> None:
         check_params(self, locals())
         require("pink", ["pink"])
-        self.configure_qp(solver, (damping, regularization, lm_damping), limits, limit_gain)
+        self.configure_qp(solver, (damping, regularization, lm_damping), limits)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build pink's configuration, velocity task and limits for ``robot`` (``dt`` in [s]).

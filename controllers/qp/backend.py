@@ -2,7 +2,7 @@ r"""QP differential inverse kinematics with joint limits (pink / mink style)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar, Literal
 
@@ -10,7 +10,7 @@ import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput, damping_weight
 from otmm_qp.limits import Box, LimitSpec, Row, make_limits, per_joint
-from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
+from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -76,12 +76,13 @@ class QpBackend(BoxQpBackend):
         infeasible_policy: ``raise``, ``hold`` or ``dls`` (``dls`` clips ``q̇*`` into the
             relaxed box).
         fast_path: Skip the QP when the unconstrained minimiser is feasible.
-        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
-        acceleration_limit: Older form of ``limits: [..., {type: acceleration, a_max: a}]``.
-        singularity_barrier: Older form of ``limits: [..., {type: singularity_barrier, ...}]``.
+
+    The older keys ``limit_gain``, ``acceleration_limit`` and ``singularity_barrier`` are
+    refused with the ``limits`` list to write instead (``removed_parameters``,
+    :func:`~otmm_qp.limits.options.removed_limit_keys`).
 
     Raises:
-        ParameterError: A parameter out of range, or ``limits`` given with an older key.
+        ParameterError: A parameter out of range.
         SolverNotFound: ``solver`` is not installed.
     """
 
@@ -97,10 +98,10 @@ class QpBackend(BoxQpBackend):
         "q_nominal": [ArrayOf(Interval(Real, None, None), per="joint"), None],
         "infeasible_policy": OneOf(*POLICIES),
         "fast_path": Boolean(),
-        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
-        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
-        "singularity_barrier": LEGACY_CONSTRAINTS["singularity_barrier"],
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = removed_limit_keys(
+        "limit_gain", "acceleration_limit", "singularity_barrier"
+    )
 
     def __init__(
         self,
@@ -113,18 +114,10 @@ class QpBackend(BoxQpBackend):
         q_nominal: Sequence[float] | None = None,
         infeasible_policy: InfeasiblePolicy = "raise",
         fast_path: bool = True,
-        limit_gain: float | None = None,
-        acceleration_limit: float | Sequence[float] | None = None,
-        singularity_barrier: object = None,
     ) -> None:
         check_params(self, locals())
         mu = damping_weight(damping, regularization, DEFAULT_REGULARIZATION, positive=True)
-        legacy = {
-            "limit_gain": limit_gain,
-            "acceleration_limit": acceleration_limit,
-            "singularity_barrier": singularity_barrier,
-        }
-        super().__init__(solver, make_limits(limits, legacy), infeasible_policy)
+        super().__init__(solver, make_limits(limits), infeasible_policy)
         self.formulation = QpFormulation(mu, float(posture_weight))
         self.posture_gain = float(posture_gain)
         self.q_nominal_param = None if q_nominal is None else np.asarray(q_nominal, dtype=float)

@@ -2,14 +2,15 @@ r"""Manipulability in the QP objective (Haviland & Corke 2021, NEO-style) on the
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput, damping_weight
-from otmm_qp.limits.options import LEGACY_CONSTRAINTS
+from otmm_qp.limits import LimitSpec
+from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
@@ -59,8 +60,7 @@ class ManipulabilityQpBackend(QpBackend):
         regularization: μ > 0, the weight of ½‖q̇‖², instead of ``damping`` (10⁻³ when
             neither is given).
         solver: As ``qp``.
-        limit_gain: As ``qp``.
-        acceleration_limit: As ``qp``.
+        limits: As ``qp``.
         infeasible_policy: As ``qp``.
         fast_path: As ``qp``.
     """
@@ -71,11 +71,13 @@ class ManipulabilityQpBackend(QpBackend):
         "damping": POSITIVE_OR_NONE,
         "regularization": POSITIVE_OR_NONE,
         "solver": SOLVER,
-        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
-        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
+        "limits": [LIMITS, None],
         "infeasible_policy": OneOf(*POLICIES),
         "fast_path": Boolean(),
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = removed_limit_keys(
+        "limit_gain", "acceleration_limit"
+    )
 
     def __init__(
         self,
@@ -83,8 +85,7 @@ class ManipulabilityQpBackend(QpBackend):
         damping: float | None = None,
         regularization: float | None = None,
         solver: str = "daqp",
-        limit_gain: float | None = None,
-        acceleration_limit: float | Sequence[float] | None = None,
+        limits: Sequence[LimitSpec] | None = None,
         infeasible_policy: Literal["raise", "hold", "dls"] = "raise",
         fast_path: bool = True,
     ) -> None:
@@ -95,8 +96,7 @@ class ManipulabilityQpBackend(QpBackend):
         super().__init__(
             regularization=split,
             solver=solver,
-            limit_gain=limit_gain,
-            acceleration_limit=acceleration_limit,
+            limits=limits,
             posture_weight=(mu - split) if weight > 0.0 else 0.0,
             infeasible_policy=infeasible_policy,
             fast_path=fast_path,

@@ -2,7 +2,7 @@ r"""Direction-preserving QP differential IK after Drake's ``DoDifferentialInvers
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
 from typing import ClassVar, Literal
 
@@ -13,7 +13,7 @@ import qpsolvers
 from otmm_qp.backends.backend import BackendOutput, rank_cutoff
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitSpec, make_limits
-from otmm_qp.limits.options import LEGACY_CONSTRAINTS, LIMITS
+from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -112,8 +112,9 @@ class ScaledQpBackend(BoxQpBackend):
             ``hold`` (zero speed clipped into the relaxed box, ``α = 0``), used when the box
             is empty or no ``(q̇, α)`` exists (e.g. the box excludes ``q̇ = 0`` while ``J_w``
             has no null space).
-        limit_gain: Older form of ``limits: [{type: position, gain: g}]``.
-        acceleration_limit: Older form of ``limits: [..., {type: acceleration, a_max: a}]``.
+
+    The older keys ``limit_gain`` and ``acceleration_limit`` are refused with the ``limits``
+    list to write instead (``removed_parameters``).
     """
 
     name = "qp_scaled"
@@ -124,9 +125,10 @@ class ScaledQpBackend(BoxQpBackend):
         "stuck_threshold": Interval(Real, 0, 1, closed="both"),
         "regularization": Interval(Real, 0, None, closed="neither"),
         "infeasible_policy": OneOf(*POLICIES),
-        "limit_gain": LEGACY_CONSTRAINTS["limit_gain"],
-        "acceleration_limit": LEGACY_CONSTRAINTS["acceleration_limit"],
     }
+    removed_parameters: ClassVar[Mapping[str, str]] = removed_limit_keys(
+        "limit_gain", "acceleration_limit"
+    )
 
     def __init__(
         self,
@@ -135,14 +137,11 @@ class ScaledQpBackend(BoxQpBackend):
         stuck_threshold: float = 0.1,
         regularization: float = 1e-6,
         infeasible_policy: Literal["raise", "hold"] = "raise",
-        limit_gain: float | None = None,
-        acceleration_limit: float | Sequence[float] | None = None,
     ) -> None:
         check_params(self, locals())
         installed = set(qpsolvers.available_solvers) | set(SESSIONS)
         allowed = [s for s in SCALED_SOLVERS if s in installed]
-        legacy = {"limit_gain": limit_gain, "acceleration_limit": acceleration_limit}
-        limit_set = make_limits(limits, legacy)
+        limit_set = make_limits(limits)
         if limit_set.rows:
             names = ", ".join(row.name for row in limit_set.rows)
             raise ParameterError("limits", f"qp_scaled takes box limits only, not {names}")

@@ -195,7 +195,7 @@ def test_unlimited_arm_qp_equals_dls(fast_path: bool) -> None:
 def test_problem_solved_from_scratch_equals_step(name: str) -> None:
     """The pure problem a step exposes, solved by quadprog, gives that step's q̇."""
     robot = ROBOTS[name]
-    backend = QpBackend(solver="daqp", fast_path=False, posture_weight=0.1)
+    backend = QpBackend(solver="daqp", fast_path=False, posture={"weight": 0.1})
     backend.bind(robot, DT)
     for state, xdot in cases(robot, 10, seed=4):
         out = backend.solve(state, xdot, np.zeros(robot.nv))

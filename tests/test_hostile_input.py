@@ -110,7 +110,9 @@ CONFIG_CASES: dict[str, tuple[str | bytes, str]] = {
         r"controllers\.0 \(OTMM\)",
     ),
     "q_nominal length": (
-        GOOD.replace("backend: {type: pinv}", QP[:-1] + ", q_nominal: [1, 2, 3]}"),
+        GOOD.replace(
+            "backend: {type: pinv}", QP[:-1] + ", posture: {weight: 0.1, q_nominal: [1, 2, 3]}}"
+        ),
         r"controllers\.0 \(OTMM\)",
     ),
     "2-D circle on a pose arm": (

@@ -161,8 +161,9 @@ def test_unknown_solver_message() -> None:
 
 
 def test_posture_cost_unconstrained_matches_qp() -> None:
-    backend = QpBackend(solver="quadprog", posture_weight=0.1, q_nominal=[0.0] * 7)
-    slow = QpBackend(solver="quadprog", posture_weight=0.1, q_nominal=[0.0] * 7, fast_path=False)
+    posture = {"weight": 0.1, "q_nominal": [0.0] * 7}
+    backend = QpBackend(solver="quadprog", posture=posture)
+    slow = QpBackend(solver="quadprog", posture=posture, fast_path=False)
     backend.bind(PANDA, DT)
     slow.bind(PANDA, DT)
     theta = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])

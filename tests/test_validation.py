@@ -328,8 +328,18 @@ CLI_CASES: dict[str, tuple[str | None, str, str]] = {
     "qp fast_path string": (None, "{type: qp, fast_path: 'yes'}", r"fast_path: must be true or"),
     "qp q_nominal inf": (
         None,
-        "{type: qp, q_nominal: [0.0, .inf]}",
-        r"backend\.q_nominal: must be a list of entries, each a finite number",
+        "{type: qp, posture: {weight: 0.1, q_nominal: [0.0, .inf]}}",
+        r"backend\.posture\.q_nominal: must be a list of entries, each a finite number",
+    ),
+    "qp posture key": (
+        None,
+        "{type: qp, posture: {wieght: 0.1}}",
+        r"backend\.posture\.wieght: unknown parameter; allowed: weight, gain, q_nominal",
+    ),
+    "qp older posture key": (
+        None,
+        "{type: qp, posture_weight: 0.1}",
+        r"backend\.posture_weight: moved into posture: \{weight: W, gain: G",
     ),
     "limit gain 2": (
         None,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from numbers import Real
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -15,9 +15,9 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.validation import (
-    ArrayOf,
     Boolean,
     Constraints,
+    InstanceOf,
     Interval,
     OneOf,
     check_params,
@@ -25,6 +25,7 @@ from otmm_qp.validation import (
 
 from .box_backend import SOLVER, SOLVER_TOL, BoxQpBackend, QpStep
 from .formulation import BIG, QpFormulation, QpProblem, clip_into_box
+from .posture import POSTURE_MOVED, QpPosture
 from .solvers import QpSession, available_solvers, make_session
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
@@ -69,17 +70,17 @@ class QpBackend(BoxQpBackend):
             solved from scratch each step); ``direct_<name>`` are aliases.
         limits: Limit objects or ``{type: NAME, ...}`` entries (:mod:`otmm_qp.limits.options`);
             None: the robot's speed limit and ``{type: position, gain: 0.5}``.
-        posture_weight: ``w_p ≥ 0`` of the posture cost (0: none).
-        posture_gain: ``g_p ≥ 0`` [1/s] of the posture velocity.
-        q_nominal: ``θ_nom`` joint coordinates (nv,); the first state seen after
-            :meth:`reset` when omitted.
+        posture: The posture cost ``{weight: w_p, gain: g_p, q_nominal: θ_nom}``
+            (:class:`~.posture.QpPosture`; ``q_nominal`` omitted: the first state seen after
+            :meth:`reset`); None: no posture cost.
         infeasible_policy: ``raise``, ``hold`` or ``dls`` (``dls`` clips ``q̇*`` into the
             relaxed box).
         fast_path: Skip the QP when the unconstrained minimiser is feasible.
 
     The older keys ``limit_gain``, ``acceleration_limit`` and ``singularity_barrier`` are
     refused with the ``limits`` list to write instead (``removed_parameters``,
-    :func:`~otmm_qp.limits.options.removed_limit_keys`).
+    :func:`~otmm_qp.limits.options.removed_limit_keys`), and ``posture_weight``,
+    ``posture_gain``, ``q_nominal`` with the ``posture`` block.
 
     Raises:
         ParameterError: A parameter out of range.
@@ -93,15 +94,17 @@ class QpBackend(BoxQpBackend):
         "regularization": POSITIVE_OR_NONE,
         "solver": SOLVER,
         "limits": [LIMITS, None],
-        "posture_weight": Interval(Real, 0, None, closed="left"),
-        "posture_gain": Interval(Real, 0, None, closed="left", unit="1/s"),
-        "q_nominal": [ArrayOf(Interval(Real, None, None), per="joint"), None],
+        "posture": [
+            InstanceOf((Mapping, QpPosture), "a mapping {weight: ..., gain: ..., q_nominal: ...}"),
+            None,
+        ],
         "infeasible_policy": OneOf(*POLICIES),
         "fast_path": Boolean(),
     }
-    removed_parameters: ClassVar[Mapping[str, str]] = removed_limit_keys(
-        "limit_gain", "acceleration_limit", "singularity_barrier"
-    )
+    removed_parameters: ClassVar[Mapping[str, str]] = {
+        **removed_limit_keys("limit_gain", "acceleration_limit", "singularity_barrier"),
+        **POSTURE_MOVED,
+    }
 
     def __init__(
         self,
@@ -109,18 +112,17 @@ class QpBackend(BoxQpBackend):
         regularization: float | None = None,
         solver: str = "daqp",
         limits: Sequence[LimitSpec] | None = None,
-        posture_weight: float = 0.0,
-        posture_gain: float = 1.0,
-        q_nominal: Sequence[float] | None = None,
+        posture: QpPosture | Mapping[str, Any] | None = None,
         infeasible_policy: InfeasiblePolicy = "raise",
         fast_path: bool = True,
     ) -> None:
         check_params(self, locals())
         mu = damping_weight(damping, regularization, DEFAULT_REGULARIZATION, positive=True)
         super().__init__(solver, make_limits(limits), infeasible_policy)
-        self.formulation = QpFormulation(mu, float(posture_weight))
-        self.posture_gain = float(posture_gain)
-        self.q_nominal_param = None if q_nominal is None else np.asarray(q_nominal, dtype=float)
+        self.posture = QpPosture.from_spec(posture)
+        self.formulation = QpFormulation(mu, self.posture.weight)
+        self.posture_gain = self.posture.gain
+        self.q_nominal_param = self.posture.q_nominal
         self.q_nominal: FloatArray | None = None
         self.fast_path = bool(fast_path)
         self._row_session: QpSession | None = make_session(solver) if self.limits.rows else None
@@ -129,7 +131,7 @@ class QpBackend(BoxQpBackend):
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the limits; allocate the QP data written in place each step."""
-        self.q_nominal = per_joint(self.q_nominal_param, "q_nominal", robot.nv)
+        self.q_nominal = per_joint(self.q_nominal_param, "posture.q_nominal", robot.nv)
         super().bind(robot, dt)
         # With finite speed limits every non-empty box lies within ±BIG: the box is then
         # written straight into the problem's lb/ub (no copy, no clipping per step).

@@ -18,6 +18,7 @@ from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_para
 from ..manipulability import manipulability_gradient
 from .backend import DEFAULT_REGULARIZATION, POLICIES, POSITIVE_OR_NONE, QpBackend
 from .box_backend import SOLVER
+from .posture import QpPosture
 
 
 class ManipulabilityQpBackend(QpBackend):
@@ -97,7 +98,7 @@ class ManipulabilityQpBackend(QpBackend):
             regularization=split,
             solver=solver,
             limits=limits,
-            posture_weight=(mu - split) if weight > 0.0 else 0.0,
+            posture=QpPosture(weight=mu - split) if weight > 0.0 else None,
             infeasible_policy=infeasible_policy,
             fast_path=fast_path,
         )

@@ -162,21 +162,25 @@ class SolverNotFound(OtmmError):
 class InfeasibleProblem(OtmmError):
     """A QP step has no solution and the infeasibility policy is ``raise``.
 
+    The backend raises it without the step index (a backend does not count steps); the
+    simulation loop, which knows the step, states it (``infeasible QP at step k: ...``).
+
     Attributes:
-        step: Index of the control step.
+        step: Index of the control step, or None where unknown (raised by a backend).
         detail: Solver message or which bound conflicts.
         problem: The QP of the step (the evidence), or None.
         solution: The solver's answer (None when the solver was not called).
     """
 
     def __init__(
-        self, step: int, detail: str, problem: object = None, solution: object = None
+        self, step: int | None, detail: str, problem: object = None, solution: object = None
     ) -> None:
         self.step = step
         self.detail = detail
         self.problem = problem
         self.solution = solution
-        super().__init__(f"infeasible QP at step {step}: {detail}")
+        where = "" if step is None else f" at step {step}"
+        super().__init__(f"infeasible QP{where}: {detail}")
 
 
 class PeerUnavailable(OtmmError):

@@ -129,7 +129,8 @@ def test_infeasible_start_raises() -> None:
     with pytest.raises(InfeasibleProblem) as info:
         backend.solve(KinematicState.compute(arm, theta), np.zeros(2), np.zeros(3))
     message = str(info.value)
-    assert message.startswith("infeasible QP at step 0: joint 'joint1': velocity box [-2, 2]")
+    assert message.startswith("infeasible QP: joint 'joint1': velocity box [-2, 2]")
+    assert info.value.step is None  # the backend does not count steps; the loop says which
     assert "\n" not in message
     evidence = info.value.problem  # the step's QP travels with the error
     assert isinstance(evidence, QpProblem)
@@ -229,9 +230,7 @@ def test_solver_failure_carries_problem_and_answer() -> None:
     state = KinematicState.compute(PANDA, PANDA.configuration(theta))
     with pytest.raises(InfeasibleProblem) as info:
         backend.solve(state, np.full(6, 0.01), np.zeros(7))
-    assert str(info.value) == (
-        "infeasible QP at step 0: solver 'daqp' found no solution (exitflag -1)"
-    )
+    assert str(info.value) == ("infeasible QP: solver 'daqp' found no solution (exitflag -1)")
     assert info.value.solution == Solution(None, False, "exitflag -1")
     problem = info.value.problem
     assert isinstance(problem, QpProblem)
@@ -244,3 +243,16 @@ def test_solver_failure_carries_problem_and_answer() -> None:
     out = holding.solve(state, np.full(6, 0.01), np.zeros(7))
     assert out.status == "infeasible"  # the box was not empty: nothing was relaxed
     np.testing.assert_array_equal(out.qdot, np.zeros(7))
+
+
+def test_the_loop_states_the_step_of_an_infeasible_qp() -> None:
+    """The backend raises without a step index; the loop's one line names its step."""
+    from otmm_qp.simulation.simulate import failure_message
+
+    arm, theta = _outside_start()
+    backend = QpBackend(solver="daqp")
+    backend.bind(arm, DT)
+    with pytest.raises(InfeasibleProblem) as info:
+        backend.solve(KinematicState.compute(arm, theta), np.zeros(2), np.zeros(3))
+    line = failure_message(7, info.value)
+    assert line.startswith("infeasible QP at step 7: joint 'joint1': velocity box")

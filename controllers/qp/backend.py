@@ -142,7 +142,7 @@ class QpBackend(BoxQpBackend):
         self._row_data = QpProblem.allocate(robot.nv, len(self.limits.rows))
 
     def reset(self) -> None:
-        """Forget warm starts, the step counter and a defaulted nominal posture."""
+        """Forget warm starts and a defaulted nominal posture."""
         super().reset()
         if self._row_session is not None:
             self._row_session.reset()
@@ -158,10 +158,10 @@ class QpBackend(BoxQpBackend):
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Joint velocity [rad/s], shape ``(nv,)``, within the box; ``details`` a ``QpStep``."""
-        step, theta, empty = self.begin_step(state, qdot_prev)
+        theta, empty = self.begin_step(state, qdot_prev)
         formulation = self.formulation
         posture = None if formulation.posture_weight <= 0.0 else self._posture(theta)
-        inputs: StepInputs = (step, state, xdot, posture)
+        inputs: StepInputs = (state, xdot, posture)
         if empty:
             return self._empty_box(inputs)
         qdot, status, record = self._solve_box(inputs)
@@ -172,19 +172,19 @@ class QpBackend(BoxQpBackend):
 
     def _empty_box(self, inputs: StepInputs) -> BackendOutput:
         """The policy's answer to an empty box (``raise`` carries the step's QP)."""
-        step, state, xdot, posture = inputs
+        state, xdot, posture = inputs
         bounds = self.box.bounds
         problem = self.formulation.build(
             state.task_jacobian, xdot, posture, bounds, QpProblem.allocate(state.jacobian.shape[1])
         )
         detail = self.box.conflict(self.robot.joint_names)
         preferred = self.formulation.unconstrained(state, xdot, posture)
-        qdot, status = self.fallback(step, detail, (problem, None), True, preferred)
+        qdot, status = self.fallback(detail, (problem, None), True, preferred)
         return BackendOutput(qdot, status, self._factor, details=QpStep(bounds, problem))
 
     def _solve_box(self, inputs: StepInputs) -> tuple[FloatArray, Status, QpStep]:
         """The optimum under the box: the fast path when it applies, else the QP."""
-        _, state, xdot, posture = inputs
+        state, xdot, posture = inputs
         bounds = self.box.bounds
         if self.fast_path:
             candidate = self.formulation.unconstrained(state, xdot, posture)
@@ -205,11 +205,11 @@ class QpBackend(BoxQpBackend):
         record = QpStep(bounds, data, solution, rows)
         settled = None if solution.x is None else clip_into_box(solution.x, bounds, SOLVER_TOL)
         if settled is None:  # no solution, or a non-finite one
-            step, state, xdot, posture = inputs
+            state, xdot, posture = inputs
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"
             preferred = self.formulation.unconstrained(state, xdot, posture)
             evidence = (data.copy(), solution)
-            qdot, status = self.fallback(step, detail, evidence, False, preferred)
+            qdot, status = self.fallback(detail, evidence, False, preferred)
             return qdot, status, record
         qdot, active = settled
         return qdot, Status.BOUNDED if active else Status.OK, record
@@ -218,7 +218,7 @@ class QpBackend(BoxQpBackend):
         self, inputs: StepInputs, session: QpSession, qdot: FloatArray, status: Status
     ) -> tuple[FloatArray, Status, QpStep]:
         """Keep ``qdot`` if it meets every row limit, else re-solve with every applicable row."""
-        _, state, xdot, posture = inputs
+        state, xdot, posture = inputs
         applicable = [limit for limit in self.limits.rows if limit.applies(state)]
         bounds = self.box.bounds
         if all(limit.satisfied(state, qdot) for limit in applicable):
@@ -242,5 +242,5 @@ class QpBackend(BoxQpBackend):
         return qdot, status, record
 
 
-#: One step's inputs: ``(step index, state, ẋ_w (n,), q̇_p (nv,) or None)``.
-StepInputs = tuple[int, KinematicState, FloatArray, FloatArray | None]
+#: One step's inputs: ``(state, ẋ_w (n,), q̇_p (nv,) or None)``.
+StepInputs = tuple[KinematicState, FloatArray, FloatArray | None]

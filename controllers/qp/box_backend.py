@@ -107,7 +107,6 @@ class BoxQpBackend(Backend):
         self.box = LimitBox(limits.boxes)
         self.infeasible_policy = infeasible_policy
         self.session: QpSession = make_session(solver)
-        self._step = 0
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the limits and allocate the box; forget the last run."""
@@ -119,22 +118,17 @@ class BoxQpBackend(Backend):
         self.reset()
 
     def reset(self) -> None:
-        """Forget the step counter and the solver's warm start."""
-        self._step = 0
+        """Forget the solver's warm start."""
         self.session.reset()
 
-    def begin_step(
-        self, state: KinematicState, qdot_prev: FloatArray
-    ) -> tuple[int, FloatArray, bool]:
-        """Count the step and write its box into ``box.bounds``.
+    def begin_step(self, state: KinematicState, qdot_prev: FloatArray) -> tuple[FloatArray, bool]:
+        """Write the step's box into ``box.bounds``.
 
         Returns:
-            ``(step index, joint coordinates θ (nv,), whether the box is empty)``.
+            ``(joint coordinates θ (nv,), whether the box is empty)``.
         """
-        step = self._step
-        self._step += 1
         theta = state.q if self._euclidean else self.robot.joint_coordinates(state.q)
-        return step, theta, self.box.compute(theta, qdot_prev)
+        return theta, self.box.compute(theta, qdot_prev)
 
     def classify(self, qdot: FloatArray, tol: float) -> Status:
         """``bounded`` when some ``q̇_i`` is within ``tol·(1 + |bound|)`` of (or beyond) a bound."""
@@ -149,7 +143,6 @@ class BoxQpBackend(Backend):
 
     def fallback(
         self,
-        step: int,
         detail: str,
         evidence: tuple[QpProblem | None, Solution | None],
         empty: bool,
@@ -158,7 +151,6 @@ class BoxQpBackend(Backend):
         """Apply the infeasibility policy to a step with no solution.
 
         Args:
-            step: Step index.
             detail: One-line reason (which joint's boxes conflict, or the solver's answer).
             evidence: The step's QP (None if not built) and the solver's answer (None when
                 the solver was not called): carried by the ``raise`` policy's error.
@@ -169,10 +161,11 @@ class BoxQpBackend(Backend):
             ``(q̇ inside the relaxed box, relaxed | infeasible)``.
 
         Raises:
-            InfeasibleProblem: The policy is ``raise``.
+            InfeasibleProblem: The policy is ``raise`` (without the step index: the loop that
+                runs the backend states it).
         """
         if self.infeasible_policy == "raise":
-            raise InfeasibleProblem(step, detail, *evidence)
+            raise InfeasibleProblem(None, detail, *evidence)
         lower, upper = self.box.relaxed()
         target = np.zeros_like(lower)
         if self.infeasible_policy == "dls" and preferred is not None:

@@ -153,12 +153,12 @@ class ScaledQpBackend(BoxQpBackend):
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Joint velocity [rad/s] realising ``α ẋ_w``; ``BackendOutput.scale = α``."""
-        step, _, empty = self.begin_step(state, qdot_prev)
+        _, empty = self.begin_step(state, qdot_prev)
         bounds = self.box.bounds
         if empty:
             problem = build_scaled_qp(state, xdot, bounds, self.regularization)
             detail = self.box.conflict(self.robot.joint_names)
-            return self._fail(step, detail, (problem, None), True)
+            return self._fail(detail, (problem, None), True)
         keep, inside = range_split(state, xdot)
         if inside:
             sigma = state.sigma
@@ -174,7 +174,7 @@ class ScaledQpBackend(BoxQpBackend):
         settled = None if x is None else clip_into_box(x[:-1], bounds, SOLVER_TOL)
         if x is None or settled is None or not np.isfinite(x[-1]):
             detail = f"solver {self.solver!r} found no (q̇, α) with J q̇ = α ẋ inside the box"
-            return self._fail(step, detail, (problem, solution), False)
+            return self._fail(detail, (problem, solution), False)
         alpha = float(np.clip(x[-1], 0.0, 1.0))
         qdot, active = settled
         status = Status.STUCK if alpha < self.stuck_threshold else (
@@ -188,11 +188,10 @@ class ScaledQpBackend(BoxQpBackend):
 
     def _fail(
         self,
-        step: int,
         detail: str,
         evidence: tuple[QpProblem | None, Solution | None],
         empty: bool,
     ) -> BackendOutput:
-        qdot, status = self.fallback(step, detail, evidence, empty)
+        qdot, status = self.fallback(detail, evidence, empty)
         details = QpStep(self.box.bounds, *evidence)
         return BackendOutput(qdot, status, scale=0.0, details=details)

@@ -20,6 +20,11 @@ from otmm_qp_controllers.manipulability import (
 from otmm_qp_controllers.sns import SnsBackend, task_scaling_factor
 
 
+def sns_limits(max_speed: float) -> list[dict[str, object]]:
+    """``sns``'s default limits with the speed capped at ``max_speed`` [rad/s]."""
+    return [{"type": "velocity", "max_speed": max_speed}, {"type": "position", "gain": 1}]
+
+
 def reference_jparse(J: np.ndarray, xdot: np.ndarray, gamma: float, gain: float) -> np.ndarray:
     """Matrix form J_s⁺ (J_p J_p⁺ + K Φ) ẋ with numpy's pinv (independent of the SVD path)."""
     U, S, Vt = np.linalg.svd(J)
@@ -74,7 +79,10 @@ def test_jparse_at_an_exact_singularity_and_zero_command() -> None:
         (lambda: JParseBackend(gamma=0.0), "gamma: must be in (0, 1), got 0.0"),
         (lambda: JParseBackend(gamma=1.0), "gamma: must be in (0, 1), got 1.0"),
         (lambda: JParseBackend(singular_gain=-1.0), "singular_gain: must be a finite number >= 0"),
-        (lambda: SnsBackend(max_speed=0.0), "max_speed: must be a finite number > 0 [rad/s]"),
+        (
+            lambda: SnsBackend(limits=[{"type": "velocity", "max_speed": 0.0}]),
+            "limits.0.max_speed: must be a finite number > 0 [rad/s]",
+        ),
         (lambda: SnsBackend(rcond=1.0), "rcond: must be in [0, 1), got 1.0"),
         (lambda: ManipulabilityBackend(gain=-1.0), "gain: must be a finite number >= 0"),
         (lambda: ManipulabilityBackend(damping=float("inf")), "damping: must be a finite number"),
@@ -103,7 +111,7 @@ def test_sns_meets_bounds_exactly_and_preserves_the_task_direction(
     case: tuple[PlanarArm, np.ndarray, np.ndarray, float],
 ) -> None:
     arm, q, xdot, speed = case
-    backend = SnsBackend(max_speed=speed)
+    backend = SnsBackend(limits=sns_limits(speed))
     backend.bind(arm, 0.01)
     state = KinematicState.compute(arm, q)
     out = backend.solve(state, xdot, np.zeros(arm.nv))
@@ -147,7 +155,7 @@ def test_sns_task_scale_is_feasible_and_never_above_the_lp_optimum(m: int, seed:
     if state.sigma_min < 1e-3:
         return
     xdot = rng.normal(size=2) * 2.0
-    backend = SnsBackend(max_speed=1.0)
+    backend = SnsBackend(limits=sns_limits(1.0))
     backend.bind(arm, 0.01)
     out = backend.solve(state, xdot, np.zeros(m))
     optimum = best_feasible_scale(state.jacobian, xdot, 1.0)
@@ -165,7 +173,7 @@ def test_sns_task_scale_is_feasible_and_never_above_the_lp_optimum(m: int, seed:
 def test_sns_greedy_scale_is_strictly_below_the_best_feasible_one() -> None:
     """The counter-example to "optimal": the LP finds a 2 % larger scale than greedy SNS."""
     arm = PlanarArm([1.0, 1.0, 1.0])
-    backend = SnsBackend(max_speed=1.0)
+    backend = SnsBackend(limits=sns_limits(1.0))
     backend.bind(arm, 0.01)
     state = KinematicState.compute(arm, np.array([-1.0, -1.8, -0.2]))
     xdot = np.array([-1.0, -1.8])
@@ -189,7 +197,7 @@ def test_sns_greedy_gap_over_random_redundant_cases() -> None:
         if state.sigma_min < 1e-3:
             continue
         xdot = rng.normal(size=2) * 2.0
-        backend = SnsBackend(max_speed=1.0)
+        backend = SnsBackend(limits=sns_limits(1.0))
         backend.bind(arm, 0.01)
         scale = backend.solve(state, xdot, np.zeros(m)).scale
         optimum = best_feasible_scale(state.jacobian, xdot, 1.0)
@@ -204,7 +212,7 @@ def test_sns_greedy_gap_over_random_redundant_cases() -> None:
 def test_sns_uses_redundancy_before_scaling() -> None:
     """A 3-link arm: the full task needs one joint saturated; here SNS matches the LP optimum."""
     arm = PlanarArm([1.0, 1.0, 1.0])
-    backend = SnsBackend(max_speed=1.0)
+    backend = SnsBackend(limits=sns_limits(1.0))
     backend.bind(arm, 0.01)
     state = KinematicState.compute(arm, np.array([0.3, 0.8, 0.5]))
     ok = backend.solve(state, np.array([0.0, 1.0]), np.zeros(3))

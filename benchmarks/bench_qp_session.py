@@ -39,7 +39,11 @@ from otmm_qp_controllers.qp import QpBackend  # noqa: E402
 
 DT = 0.01  # [s]
 CLIK_GAIN = 10.0  # [1/s]
-BARRIER = {"sigma_safe": 0.02, "gain": 1.0}
+#: qp's default position limit plus the singularity barrier (the ``limits`` form).
+BARRIER = [
+    {"type": "position", "gain": 0.5},
+    {"type": "singularity_barrier", "sigma_safe": 0.02, "gain": 1.0},
+]
 REFERENCE = "pink (daqp)"
 
 Step = Callable[[int], object]
@@ -98,10 +102,8 @@ def pipelines(robot: PinocchioArm, qs: FloatArray, xdots: FloatArray, prevs: Flo
         "qp (daqp session, QP every step)": otmm_step(*data, otmm=False, fast_path=False),
         "otmm+qp (default)": otmm_step(*data, otmm=True),
         "otmm+qp (daqp session, QP every step)": otmm_step(*data, otmm=True, fast_path=False),
-        "qp+barrier (default)": otmm_step(*data, otmm=False, singularity_barrier=BARRIER),
-        "qp+barrier (QP every step)": otmm_step(
-            *data, otmm=False, fast_path=False, singularity_barrier=BARRIER
-        ),
+        "qp+barrier (default)": otmm_step(*data, otmm=False, limits=BARRIER),
+        "qp+barrier (QP every step)": otmm_step(*data, otmm=False, fast_path=False, limits=BARRIER),
     }
     try:
         rows[REFERENCE] = pink_step(*data)

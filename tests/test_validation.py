@@ -190,6 +190,39 @@ def test_interval_matches_the_predicate(
         assert "\n" not in message and len(message) < 200
 
 
+entries = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(-5, 5),
+    st.booleans(),
+    st.text(max_size=2),
+)
+
+
+@given(
+    st.one_of(
+        entries, st.lists(entries, max_size=4), st.lists(st.lists(entries, max_size=2), max_size=2)
+    ),
+    st.booleans(),
+)
+def test_array_of_matches_the_predicate(value: object, scalar: bool) -> None:
+    """Non-empty flat list of finite numbers ≥ 0 (or one, when ``scalar``), nothing else."""
+    element = Interval(Real, 0, None, closed="left")
+
+    def ok(entry: object) -> bool:
+        return (
+            isinstance(entry, int | float)
+            and not isinstance(entry, bool)
+            and math.isfinite(entry)
+            and entry >= 0
+        )
+
+    if isinstance(value, list):
+        expected = bool(value) and all(ok(entry) for entry in value)
+    else:
+        expected = scalar and ok(value)
+    assert ArrayOf(element, scalar=scalar).is_satisfied_by(value) is expected
+
+
 class _Owner:
     """An object declaring one parameter ``x``."""
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import abc
-import math
 from typing import Final, NamedTuple
 
 import numpy as np
@@ -26,16 +25,18 @@ def damping_weight(
     ``damping`` means the DLS damping factor λ [task units] in every backend, as in
     :math:`J^\top(JJ^\top + \lambda^2 I)^{-1}`; a QP-shaped backend (``qp``, ``pink``,
     ``mink``) may instead be given its weight ``regularization: μ`` [task units² / (rad/s)²]
-    directly. At most one of the two.
+    directly. At most one of the two. Each value's range (a finite number ≥ 0, or > 0) is the
+    caller's declared constraint (:mod:`otmm_qp.validation`), checked in its constructor; this
+    function checks what relates the two.
 
     Args:
         damping: λ [task units], or None.
         regularization: μ, or None.
         default: μ when neither is given.
-        positive: Whether μ must be > 0 (else ≥ 0).
+        positive: Whether μ must be > 0 (a λ so small that λ² underflows to 0 is refused).
 
     Raises:
-        ParameterError: Both given, or a value that is not a finite number in range.
+        ParameterError: Both given, or μ = λ² = 0 where ``positive``.
     """
     if damping is not None and regularization is not None:
         raise ParameterError(
@@ -43,17 +44,11 @@ def damping_weight(
         )
     if damping is None and regularization is None:
         return default
-    field = "damping" if damping is not None else "regularization"
-    value = damping if damping is not None else regularization
-    bound = "> 0" if positive else ">= 0"
-    message = f"must be a finite number {bound}, got {value!r:.40}"
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ParameterError(field, message)
-    if not (math.isfinite(value) and value >= 0.0):
-        raise ParameterError(field, message)
-    mu = float(value) * float(value) if damping is not None else float(value)
+    mu = float(damping) * float(damping) if damping is not None else float(regularization or 0.0)
     if positive and not mu > 0.0:
-        raise ParameterError(field, message)
+        field = "damping" if damping is not None else "regularization"
+        value = damping if damping is not None else regularization
+        raise ParameterError(field, f"must be a finite number > 0, got {value!r:.40}")
     return mu
 
 

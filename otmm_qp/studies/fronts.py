@@ -144,9 +144,15 @@ class GroupFront:
         return tuple(r.name for r in self.rows if r.meets(family))
 
     def best_on(self, k: int) -> str | None:
-        """The row of lowest finite median on objective ``k`` (first-seen wins ties)."""
-        finite = [r for r in self.rows if math.isfinite(r.medians[k])]
-        return min(finite, key=lambda r: r.medians[k]).name if finite else None
+        """The row of lowest median on objective ``k``, ties broken by the other objectives.
+
+        The lexicographic minimum (objective ``k`` first, then the others in order) among the
+        rows with finite medians: always on the front; None when no row has them.
+        """
+        finite = [r for r in self.rows if all(math.isfinite(v) for v in r.medians)]
+        if not finite:
+            return None
+        return min(finite, key=lambda r: (r.medians[k], *r.medians)).name
 
     @property
     def best_on_all(self) -> str | None:

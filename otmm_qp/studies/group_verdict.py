@@ -71,6 +71,20 @@ def _medians(row: RowFront) -> str:
     return " / ".join(f"{v:.3g}" if math.isfinite(v) else "–" for v in row.medians)
 
 
+def _verdict(row: RowFront) -> str:
+    """The outcome (Holm over all pairs) with the evidence of each significant difference."""
+    out = []
+    for outcome, word in (("worse", "loses"), ("better", "wins")):
+        parts = [
+            f"{metric(c.objective).label} vs {c.other} (Holm p = {c.p_holm['all']:.2g})"
+            for c in row.comparisons
+            if c.outcome() == outcome
+        ]
+        if parts:
+            out.append(f"{word} on " + ", ".join(parts))
+    return "; ".join(out) or "no significant difference from the best others"
+
+
 def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
     """Markdown: per kind of task the most accurate and the calmest front rows, and ours."""
     heads = " / ".join(metric(m).label for m in fronts[0].objectives) if fronts else ""
@@ -92,7 +106,7 @@ def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
             place = (
                 "on the front" if mine.on_front else "dominated by " + ", ".join(mine.dominated_by)
             )
-            where = f"{_medians(mine)}; {place}; {mine.verdict()}"
+            where = f"{_medians(mine)}; {place}; {_verdict(mine)}"
         meeting = " / ".join(", ".join(g.meeting(f)) or "none" for f in ("all", "best"))
         lines.append(f"| {g.group} ({g.tasks}) | {cells[0]} | {cells[1]} | {where} | {meeting} |")
     return lines

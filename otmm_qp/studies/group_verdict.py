@@ -144,7 +144,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"group_verdict: error: {error}", file=sys.stderr)
         return 2
     if args.out is None:
-        print(text)
+        try:
+            print(text)
+        except BrokenPipeError:  # e.g. `... | head`: the reader left
+            sys.stderr.close()
     else:
         from otmm_qp.output.paths import atomic_write_text
 

@@ -120,3 +120,19 @@ def test_controllers_import_each_other_relatively() -> None:
         if any(m.startswith("otmm_qp_controllers") for m in _imports(p, module_level=False))
     ]
     assert absolute == []
+
+
+def test_replay_reads_run_folders_only_through_results_dir() -> None:
+    """No replay module parses a CSV or names a run-folder file (issue 17 point 5)."""
+    for path in (PACKAGE / "replay").glob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        modules = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        modules |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) if n.module}
+        assert "csv" not in modules, f"{path.relative_to(ROOT)} imports csv"
+        strings = {
+            n.value
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Constant) and isinstance(n.value, str)
+        }
+        named = {s for s in strings if s in {"summary.csv", "robot.json", "*/*/*.csv"}}
+        assert not named, f"{path.relative_to(ROOT)} names the layout: {sorted(named)}"

@@ -13,7 +13,7 @@ import pytest
 from otmm_qp.bench import run as bench_run
 from otmm_qp.cli import main
 from otmm_qp.output import paths as paths_module
-from otmm_qp.output.results import thinned_rows
+from otmm_qp.output.run_csv import thinned_rows
 from otmm_qp.replay.stored_runs import MAX_ROWS, read_run
 
 RUN = """

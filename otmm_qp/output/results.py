@@ -9,9 +9,9 @@
 
 Names become path parts only through :func:`~otmm_qp.output.paths.safe_name` (controller
 slugs made unique per experiment), and every path is checked to stay inside the folder.
-Readers (report, Pareto index, replay) go through :class:`ResultsDir`; a run CSV is read
-streaming and thinned to a row cap (:func:`read_run_table`), so a hostile 10⁷-row file is
-never held whole.
+Writers and readers (runner sink, report, Pareto index, replay) go through
+:class:`ResultsDir`; a run CSV (format: :mod:`otmm_qp.output.run_csv`) is read streaming and
+thinned to a row cap, so a hostile 10⁷-row file is never held whole.
 """
 
 from __future__ import annotations
@@ -20,13 +20,21 @@ import csv
 import io
 import json
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from otmm_qp.exceptions import ConfigError, OtmmError
 from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name, unique_names
+from otmm_qp.output.run_csv import (
+    MAX_RUN_ROWS,
+    RunTable,
+    is_run_header,
+    read_run_table,
+    write_run_csv,
+)
+from otmm_qp.simulation.run_result import RunResult
 
 SUMMARY_CSV = "summary.csv"
 SUMMARY_MD = "summary.md"
@@ -41,77 +49,6 @@ ROBOT_JSON = "robot.json"
 MAX_ROBOT_JSON_BYTES = 64 * 1024
 #: Top-level folders of a run folder that never hold run time series.
 NON_RUN_FOLDERS = frozenset({"replays", "figures"})
-#: Columns a run time series always has (besides its ``q_<joint>`` columns).
-RUN_CSV_COLUMNS = ("t", "sigma_min")
-#: Default cap on the rows kept of one run time series (see :func:`read_run_table`).
-MAX_RUN_ROWS = 20_000
-
-
-def is_run_header(header: Sequence[str]) -> bool:
-    """Whether a CSV header is a run time series': ``t``, ``sigma_min`` and ``q_*`` columns."""
-    return all(c in header for c in RUN_CSV_COLUMNS) and any(c.startswith("q_") for c in header)
-
-
-def thinned_rows(reader: Iterator[list[str]], width: int, limit: int) -> list[list[str]]:
-    """Complete rows of ``reader`` (``width`` cells), thinned to at most ``limit``, in order.
-
-    Every ``stride``-th row is kept; when ``limit`` is passed, every other kept row is dropped
-    and ``stride`` doubles, so memory stays at most ``limit + 1`` rows in one pass. The last
-    row is always kept.
-    """
-    kept: list[list[str]] = []
-    stride, index, last = 1, 0, None
-    for row in reader:
-        if len(row) != width:
-            continue
-        if index % stride == 0:
-            kept.append(row)
-            if len(kept) > limit:
-                kept = kept[::2]
-                stride *= 2
-            last = None
-        else:
-            last = row
-        index += 1
-    if last is not None:
-        kept.append(last)
-    return kept
-
-
-@dataclass(frozen=True)
-class RunTable:
-    """The text cells of one run time series, as stored.
-
-    Attributes:
-        path: The CSV file.
-        header: Its column names, length ``C``.
-        rows: Its complete rows (``C`` cells each), thinned evenly to the row cap, in order.
-    """
-
-    path: Path
-    header: tuple[str, ...]
-    rows: list[list[str]]
-
-
-def read_run_table(path: Path, max_rows: int = MAX_RUN_ROWS) -> RunTable:
-    """Read a run time series in one streaming pass, keeping at most ``max_rows + 1`` rows.
-
-    Raises:
-        ConfigError: Unreadable, not UTF-8, not a CSV, or without the columns ``t``,
-            ``q_*``, ``sigma_min``.
-    """
-    try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            reader = csv.reader(handle)
-            header = next(reader, [])
-            if not is_run_header(header):
-                raise ConfigError(
-                    str(path), "not a run time series (needs columns t, q_*, sigma_min)"
-                )
-            rows = thinned_rows(reader, len(header), max_rows)
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise ConfigError(str(path), f"cannot read the time series: {error}") from None
-    return RunTable(path, tuple(header), rows)
 
 
 @dataclass(frozen=True)
@@ -182,6 +119,20 @@ class ResultsDir:
         stem = unique_names(list(names))[controller]
         folder = self.path / safe_name(experiment) / safe_name(loop_mode)
         return ensure_inside(self.path, folder / f"{stem}.csv")
+
+    def write_run(self, result: RunResult, controllers: Sequence[str]) -> Path:
+        """Write ``result``'s time series to its :meth:`run_csv` path (atomically).
+
+        Args:
+            result: One finished run.
+            controllers: Controller names of its experiment, in config order (unique slugs).
+
+        Raises:
+            OutputPathError: The path would leave the folder.
+        """
+        path = self.run_csv(result.experiment, result.loop_mode, result.controller, controllers)
+        write_run_csv(result, path)
+        return path
 
     def run_names(self) -> list[tuple[str, str, str]]:
         """``(experiment, loop_mode, controller)`` of every ``summary.csv`` row, in order.

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.output.results import MAX_RUN_ROWS, ResultsDir, RunFile, RunTable, read_run_table
+from otmm_qp.output.results import ResultsDir, RunFile
+from otmm_qp.output.run_csv import MAX_RUN_ROWS, RunTable, read_run_table
 from otmm_qp.robots.robot import FloatArray
 
 

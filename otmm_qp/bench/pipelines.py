@@ -155,5 +155,4 @@ def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction]
 
 def _plain_controller(spec: PipelineSpec) -> Controller:
     backend = registry.create(registry.BACKENDS, spec.backend, spec.params, spec.label)
-    backend.name = spec.backend
-    return Controller(spec.label, [], backend)
+    return Controller(spec.label, [], backend, backend_name=spec.backend)

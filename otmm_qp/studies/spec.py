@@ -22,7 +22,7 @@ from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
-from otmm_qp.studies.oracle import OFFLINE, ORACLE, REFERENCE_NAME
+from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.studies.task_ids import check_entries, seed_name
 
@@ -226,7 +226,7 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
 class Episode:
     """One episode: indices into the study's robots, generators, controllers and loop modes.
 
-    The task's offline-optimal reference is an episode too, with ``controller = ORACLE``
+    The task's offline-optimal reference is an episode too, with ``controller = REFERENCE_INDEX``
     (−1) and ``loop_mode = "offline"``.
     """
 
@@ -440,7 +440,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
                 seed = task_seed(config.seed, robot.name, seed_name(config, g), index)
                 if config.reference.enabled:  # once per task, before its controllers
                     key = oracle_key(config, r, g, index, seed)
-                    episodes.append(Episode(key, r, g, index, seed, ORACLE, OFFLINE))
+                    episodes.append(Episode(key, r, g, index, seed, REFERENCE_INDEX, OFFLINE))
                 for c, record in enumerate(records):
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)

@@ -57,6 +57,9 @@ def _grid_size(spec: StudyController) -> int:
 def check_plan_size(config: StudyConfig, source: str = "study") -> None:
     """Refuse a study larger than its stated ``limits`` before anything is allocated.
 
+    Episodes counted: ``tasks × (controllers × loop modes + r)``, ``r = 1`` when
+    ``reference.enabled`` (each task's offline reference is an episode too), else 0.
+
     Raises:
         ConfigError: Naming the bound, the study's size and how to raise the bound.
     """
@@ -77,13 +80,16 @@ def check_plan_size(config: StudyConfig, source: str = "study") -> None:
             f"the grids expand to {controllers:.3g} controllers, more than "
             f"limits.max_controllers = {limits.max_controllers}; " + hint.format("max_controllers"),
         )
-    episodes = tasks * controllers * len(config.loop_modes)
+    references = 1 if config.reference.enabled else 0  # one reference episode per task
+    episodes = tasks * (controllers * len(config.loop_modes) + references)
     if episodes > limits.max_episodes:
+        per_task = f"{controllers} controllers × {len(config.loop_modes)} loop modes"
+        if references:
+            per_task = f"({per_task} + 1 reference)"
         raise ConfigError(
             f"{source}: controllers",
-            f"{tasks} tasks × {controllers} controllers × {len(config.loop_modes)} loop modes = "
-            f"{episodes:.3g} episodes exceeds limits.max_episodes = {limits.max_episodes}; "
-            + hint.format("max_episodes"),
+            f"{tasks} tasks × {per_task} = {episodes:.3g} episodes exceeds "
+            f"limits.max_episodes = {limits.max_episodes}; " + hint.format("max_episodes"),
         )
     for j, gen in enumerate(config.generators):
         for name in GENERATOR_BUDGETS:

@@ -222,3 +222,24 @@ def test_the_runner_and_the_loop_never_import_the_results_layer() -> None:
                 m for m in _imports(path, module_level=False) if m.startswith("otmm_qp.output")
             }
             assert not upward, f"{path.relative_to(ROOT)} imports {sorted(upward)}"
+
+
+def test_run_suite_takes_a_sink_not_a_path(tmp_path: Path) -> None:
+    """A bare folder path (the old ``out_dir``) is refused in one line before any compute."""
+    import pytest
+
+    from otmm_qp.config.load import parse_config
+    from otmm_qp.runner import run_suite
+
+    experiment = {
+        "name": "E",
+        "robot": {"type": "planar", "link_lengths": [1.0, 0.8]},
+        "q0": [0.0, 0.0],
+        "trajectory": {"type": "quintic_line", "begin": [1.8, 0.0], "end": [0.6, -1.0]},
+        "duration": 0.1,
+        "controllers": [{"name": "pinv", "backend": {"type": "pinv"}}],
+    }
+    suite = parse_config({"name": "s", "loop_modes": ["clik"], "experiments": [experiment]})
+    with pytest.raises(TypeError, match="out must be a RunSink such as .*ResultsWriter"):
+        run_suite(suite, tmp_path, progress=None)  # type: ignore[arg-type]
+    assert list(tmp_path.iterdir()) == []

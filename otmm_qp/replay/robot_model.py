@@ -4,7 +4,8 @@ The results of ``otmm-qp run`` hold joint coordinates and end-effector positions
 the robot block of the config. A replay therefore uses, in order:
 
 1. ``<experiment folder>/robot.json`` (``{"type": ..., "params": {...}}``, the config's
-   robot block) when present; :func:`write_robot_record` writes it.
+   robot block) when present; :func:`record_robots` writes it (through
+   :meth:`~otmm_qp.output.results.ResultsDir.write_robot_record`).
 2. For 2-D positions, a planar arm whose link lengths are the least-squares solution of the
    forward kinematics over all stored steps (linear in the lengths):
 

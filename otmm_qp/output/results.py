@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -151,8 +152,10 @@ class ResultsDir:
         """Every run time series of the folder, in ``summary.csv`` order where known.
 
         Files are found by the layout (``<experiment>/<loop mode>/<controller>.csv``, outside
-        :data:`NON_RUN_FOLDERS`, not symlinks) and their header (:func:`is_run_header`);
-        folder and file names are mapped back to the summary's display names.
+        :data:`NON_RUN_FOLDERS`, not symlinks) and their header (:func:`is_run_header`). A
+        file at the :meth:`run_csv` path of a ``summary.csv`` row takes that row's display
+        names; other files (a hand-made or older folder) are matched to the summary's names
+        by their file-name forms, else keep their folder and file names.
 
         Raises:
             ConfigError: The folder does not exist.
@@ -160,6 +163,7 @@ class ResultsDir:
         if not self.path.is_dir():
             raise ConfigError("RESULTS_DIR", f"{self.path} is not a folder")
         names = self.run_names()
+        written = self._summary_paths(names)
         found: list[RunFile] = []
         for path in sorted(self.path.glob("*/*/*.csv")):
             relative = path.relative_to(self.path)
@@ -172,6 +176,10 @@ class ResultsDir:
                 continue
             if not is_run_header(header):
                 continue
+            known = written.get(os.path.realpath(path))
+            if known is not None:  # the path run_csv gives this summary row
+                found.append(RunFile(*known, path))
+                continue
             experiment = _display_name(relative.parts[0], [n[0] for n in names])
             loop_mode = _display_name(relative.parts[1], [n[1] for n in names])
             controllers = [n[2] for n in names if n[0] == experiment and n[1] == loop_mode]
@@ -181,6 +189,28 @@ class ResultsDir:
         order = {name: i for i, name in enumerate(names)}
         found.sort(key=lambda r: order.get((r.experiment, r.loop_mode, r.controller), len(order)))
         return found
+
+    def _summary_paths(
+        self, names: Sequence[tuple[str, str, str]]
+    ) -> dict[str, tuple[str, str, str]]:
+        """Resolved :meth:`run_csv` path → ``(experiment, loop_mode, controller)`` per summary row.
+
+        An experiment's controller names are taken in their summary order (the config order,
+        in which :meth:`run_csv` made their slugs unique).
+        """
+        order: dict[str, list[str]] = {}
+        for experiment, _, controller in names:
+            listed = order.setdefault(experiment, [])
+            if controller not in listed:
+                listed.append(controller)
+        paths: dict[str, tuple[str, str, str]] = {}
+        for experiment, loop_mode, controller in names:
+            try:
+                path = self.run_csv(experiment, loop_mode, controller, order[experiment])
+            except OtmmError:
+                continue
+            paths.setdefault(str(path), (experiment, loop_mode, controller))
+        return paths
 
     def read_run(self, run: RunFile, max_rows: int = MAX_RUN_ROWS) -> RunTable:
         """The time series of ``run`` (see :func:`read_run_table`), checked to stay inside.

@@ -74,10 +74,25 @@ def _checked_qdot(output: ControllerOutput, nv: int) -> FloatArray:
 def _checked_step(step: PlantStep, nq: int, nv: int) -> PlantStep:
     """``step`` if its ``q`` (nq,) and ``qdot`` (nv,) are finite float arrays; else raise.
 
-    One dot product each in the common case (NaN/inf make it non-finite); the element-wise
-    test only words the message, so a finite state beyond 1e154 still passes.
+    One test and two dot products in the common case (~2 µs; NaN/inf make the sum
+    non-finite); the element-wise tests only word the message, so a finite state beyond
+    1e154 still passes (numpy then warns of the overflow in the dot product).
+
+    Raises:
+        MalformedOutput: Naming the field, its type and shape, or that it holds NaN/inf.
     """
-    for field, value, size in (("q", step.q, nq), ("qdot", step.qdot, nv)):
+    q, qdot = step.q, step.qdot
+    if (
+        type(q) is np.ndarray
+        and type(qdot) is np.ndarray
+        and q.shape == (nq,)
+        and qdot.shape == (nv,)
+        and q.dtype.kind == "f"
+        and qdot.dtype.kind == "f"
+        and math.isfinite(float(q.dot(q)) + float(qdot.dot(qdot)))
+    ):
+        return step
+    for field, value, size in (("q", q, nq), ("qdot", qdot, nv)):
         if type(value) is not np.ndarray or value.shape != (size,) or value.dtype.kind != "f":
             shape = getattr(value, "shape", None)
             raise MalformedOutput(
@@ -85,7 +100,7 @@ def _checked_step(step: PlantStep, nq: int, nv: int) -> PlantStep:
                 + (f" and shape {shape}" if shape is not None else "")
                 + f"; expected a float array of shape ({size},)"
             )
-        if not math.isfinite(float(value.dot(value))) and not np.all(np.isfinite(value)):
+        if not np.all(np.isfinite(value)):
             raise MalformedOutput(f"the plant returned {field} containing NaN or inf")
     return step
 

@@ -242,3 +242,15 @@ def test_solver_failure_carries_problem_and_answer() -> None:
     out = holding.solve(state, np.full(6, 0.01), np.zeros(7))
     assert out.status == "infeasible"  # the box was not empty: nothing was relaxed
     np.testing.assert_array_equal(out.qdot, np.zeros(7))
+
+
+@pytest.mark.parametrize(("old", "new"), [("direct_daqp", "daqp"), ("direct_osqp", "osqp")])
+def test_a_renamed_solver_name_is_refused_naming_the_new_one(old: str, new: str) -> None:
+    from otmm_qp.exceptions import ParameterError
+
+    with pytest.raises(ParameterError) as info:
+        QpBackend(solver=old)
+    assert str(info.value) == (
+        f"solver: {old!r} is now called {new!r} (the persistent {new} session); write solver: {new}"
+    )
+    assert old not in available_solvers()

@@ -61,8 +61,6 @@ from otmm_qp.studies.statistics import (
 )
 from otmm_qp.studies.storage import read_study_folder
 
-#: The reference rows' controller name (the data contract with the oracle).
-ORACLE = REFERENCE_NAME
 #: Oracle-relative error column computed for every controller row [m].
 RELATIVE_ERROR = metric_row("oracle_relative_error").name
 #: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
@@ -80,7 +78,7 @@ class Rows:
     """Episode rows as Python dicts, with success and failure causes recomputed.
 
     ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
-    (select them with ``controller=ORACLE``).
+    (select them with ``controller=REFERENCE_NAME``).
     """
 
     rows: list[dict[str, Any]]
@@ -108,7 +106,7 @@ class Rows:
 
 
 def _is_oracle(row: dict[str, Any]) -> bool:
-    return row.get("controller") == ORACLE
+    return row.get("controller") == REFERENCE_NAME
 
 
 def _known(value: Any) -> bool:
@@ -222,13 +220,13 @@ def success_table(
     lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
     where = {"robot": robot} if robot else {}
-    for name in [*rows.controllers(), ORACLE]:
+    for name in [*rows.controllers(), REFERENCE_NAME]:
         selected = rows.select(controller=name, **where)
         if not selected:
             continue
         n = len(selected)
         errors = sum(1 for r in selected if r.get("status") == "error")
-        if name == ORACLE:
+        if name == REFERENCE_NAME:
             rate = "reference (not ranked)"
         else:
             wins = sum(1 for r in selected if r["success"])
@@ -265,7 +263,7 @@ def generator_table(rows: Rows) -> list[str]:
 def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, Interval]:
     """``controller → median [interval]`` of ``metric`` on ``robot`` (the oracle included)."""
     out = {}
-    for name in [*rows.controllers(), ORACLE]:
+    for name in [*rows.controllers(), REFERENCE_NAME]:
         selected = rows.select(controller=name, robot=robot)
         if selected:
             values = np.array([_value(r, metric) for r in selected])
@@ -427,7 +425,7 @@ def accuracy_verdict(rows: Rows, robot: str) -> str:
     medians = {
         name: interval
         for name, interval in median_intervals(rows, robot, metric).items()
-        if name != ORACLE and math.isfinite(interval.value)
+        if name != REFERENCE_NAME and math.isfinite(interval.value)
     }
     if not medians:
         return f"- **Accuracy ({label})**: no finite values."
@@ -550,7 +548,8 @@ def _overview(config: StudyConfig, rows: Rows) -> list[str]:
     errors = sum(1 for r in competitors if r.get("status") == "error")
     tasks = len({_task(r) for r in rows.rows})
     reference = (
-        f"Each task's offline-optimal reference ({ORACLE} rows) is shown as a row and a point, "
+        f"Each task's offline-optimal reference ({REFERENCE_NAME} rows) is shown as a row and "
+        "a point, "
         "never ranked; accuracy is the oracle-relative error max_error − reference.max_error."
         if rows.has_reference
         else "No offline reference is stored: tasks are judged by the tolerances alone and "
@@ -895,7 +894,7 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
         e, s = errors[name], speeds[name]
         if not (math.isfinite(e.value) and math.isfinite(s.value)):
             continue
-        if name == ORACLE:
+        if name == REFERENCE_NAME:
             ax.plot(
                 s.value,
                 0.0,

@@ -142,13 +142,9 @@ def test_replay_reads_run_folders_only_through_results_dir() -> None:
 #: package graph: safe names and atomic writes are used from every layer.
 LEAF_MODULES = {"otmm_qp.output.paths"}
 
-#: Upward imports outside issue 17 point 6's scope, left out of the package graph and listed
-#: so this test fails once they go (then delete the entry): a study report kept in
-#: ``plants/``, and a trajectory plugin that rebuilds study scenarios kept in ``trajectories/``.
-KNOWN_UPWARD_IMPORTS = {
-    ("otmm_qp.plants.headline", "otmm_qp.studies"),
-    ("otmm_qp.trajectories.study_task", "otmm_qp.scenarios"),
-}
+#: Upward imports left out of the package graph (none: the plants-study headline lives in
+#: ``studies/`` and the trajectory that rebuilds a study task in ``scenarios/``).
+KNOWN_UPWARD_IMPORTS: set[tuple[str, str]] = set()
 
 
 def _package(module: str) -> str:

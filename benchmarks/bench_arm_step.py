@@ -28,10 +28,9 @@ THETA = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])  # Panda ready pose [rad
 #: label -> (backend, YAML parameters); each runs behind OTMM (σ_S = 0.05, corank all).
 PIPELINES: dict[str, tuple[str, dict[str, Any]]] = {
     "otmm+pinv": ("pinv", {}),
-    "otmm+qp (daqp)": ("qp", {"solver": "daqp"}),
-    "otmm+qp (direct_daqp)": ("qp", {"solver": "direct_daqp"}),
-    "otmm+qp (direct_daqp, QP every step)": ("qp", {"solver": "direct_daqp", "fast_path": False}),
-    "otmm+qp (direct_proxsuite)": ("qp", {"solver": "direct_proxsuite"}),
+    "otmm+qp (daqp, persistent)": ("qp", {"solver": "daqp"}),
+    "otmm+qp (daqp, persistent, QP every step)": ("qp", {"solver": "daqp", "fast_path": False}),
+    "otmm+qp (proxsuite, persistent)": ("qp", {"solver": "proxsuite"}),
 }
 
 

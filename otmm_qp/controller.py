@@ -44,6 +44,14 @@ class Controller:
         backend: The inversion backend.
         divergence_speed: Joint speed [rad/s] above which a solved step is reported
             ``diverging`` whatever the backend (see :mod:`otmm_qp.status`), > 0.
+        filter_names: The names the filters were registered under, one per filter, kept
+            beside the objects (the results' ``filters`` column); default each filter's
+            class-level ``name``.
+        backend_name: The name the backend was registered under (the results' ``backend``
+            column); default its class-level ``name``.
+
+    Raises:
+        ParameterError: ``divergence_speed`` not > 0, or ``filter_names`` not one per filter.
     """
 
     def __init__(
@@ -52,6 +60,9 @@ class Controller:
         filters: Sequence[TaskFilter],
         backend: Backend,
         divergence_speed: float = DIVERGENCE_SPEED,
+        *,
+        filter_names: Sequence[str] | None = None,
+        backend_name: str | None = None,
     ) -> None:
         try:
             speed = float(divergence_speed)
@@ -64,6 +75,16 @@ class Controller:
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
+        names = tuple(f.name for f in self.filters) if filter_names is None else tuple(filter_names)
+        if len(names) != len(self.filters):
+            raise ParameterError(
+                "filter_names",
+                f"must name each of the {len(self.filters)} filters, got {names!r:.80}",
+            )
+        #: Registered names of the filters, in order.
+        self.filter_names: tuple[str, ...] = names
+        #: Registered name of the backend.
+        self.backend_name: str = backend.name if backend_name is None else backend_name
         self._divergence_speed = speed
         self._divergence_squared = speed * speed  # inf stays inf: the check is then off
         self._speed_thresholds: FloatArray | None = None

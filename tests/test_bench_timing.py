@@ -44,13 +44,24 @@ def test_each_pipeline_sees_its_states_in_order_in_interleaved_blocks() -> None:
 def test_ratios_and_targets_from_medians() -> None:
     times = {
         "pink (daqp)": np.array([100.0, 110.0, 90.0]),
-        "otmm+qp (daqp)": np.array([40.0, 50.0, 45.0]),
-        "otmm+qp (direct_daqp, QP every step)": np.array([70.0, 61.0, 59.0]),
+        "otmm+qp (daqp, persistent)": np.array([40.0, 50.0, 45.0]),
+        "otmm+qp (daqp, persistent, QP every step)": np.array([70.0, 61.0, 59.0]),
         "otmm+pinv": np.array([36.0, 36.0, 36.0]),
     }
     rows = {row["pipeline"]: row for row in summarise(times)}
-    assert rows["otmm+qp (daqp)"]["ratio_to_pink_daqp"] == pytest.approx(0.45)
+    assert rows["otmm+qp (daqp, persistent)"]["ratio_to_pink_daqp"] == pytest.approx(0.45)
     checks = {c["target"]: c["met"] for c in check_targets(list(rows.values()))}
-    assert checks["otmm+qp (daqp) ≤ 0.5 × pink (daqp)"] is True
-    assert checks["otmm+qp (direct_daqp, QP every step) ≤ 0.6 × pink (daqp)"] is False  # 61
+    assert checks["otmm+qp (daqp, persistent) ≤ 0.5 × pink (daqp)"] is True
+    assert checks["otmm+qp (daqp, persistent, QP every step) ≤ 0.6 × pink (daqp)"] is False  # 61
     assert checks["otmm+pinv ≤ 0.35 × pink (daqp)"] is False  # 36 > 35
+
+    # each qp row is paired with pink on the same solver, by the solver its label names
+    paired = {
+        "pink (proxqp)": np.array([200.0]),
+        "qp (proxsuite, persistent)": np.array([150.0]),
+        "qp (proxqp, qpsolvers)": np.array([250.0]),
+    }
+    checks = {c["target"]: c["met"] for c in check_targets(summarise({**times, **paired}))}
+    assert checks["qp (proxsuite, persistent) ≤ pink (proxqp)"] is True
+    assert checks["qp (proxqp, qpsolvers) ≤ pink (proxqp)"] is False
+    assert not any(t.startswith(("pink", "mink", "otmm+pinv ≤ pink")) for t in checks)

@@ -56,7 +56,7 @@ def _check_bench_output(out: Path, scenarios: int) -> dict[str, object]:
     assert len(result["scenarios"]) == scenarios
     for scenario in result["scenarios"]:
         rows = {row["pipeline"]: row for row in scenario["rows"]}
-        assert "otmm+qp (direct_daqp, QP every step)" in rows
+        assert "otmm+qp (daqp, persistent, QP every step)" in rows
         assert all(row["median_us"] > 0 for row in rows.values())
         if "pink (daqp)" in rows:
             assert rows["pink (daqp)"]["ratio_to_pink_daqp"] == pytest.approx(1.0)
@@ -102,7 +102,7 @@ def test_bench_arm_step_script(capsys: pytest.CaptureFixture[str]) -> None:
     script = runpy.run_path(str(ROOT / "benchmarks" / "bench_arm_step.py"))
     results = script["main"](["--steps", "20"])
     assert "KinematicState.compute" in results
-    assert "otmm+qp (direct_daqp, QP every step) [limits active]" in results
+    assert "otmm+qp (daqp, persistent, QP every step) [limits active]" in results
     assert all(median > 0 for median, _ in results.values())
     assert "median" in capsys.readouterr().out
 

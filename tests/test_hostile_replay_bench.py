@@ -13,7 +13,7 @@ import pytest
 from otmm_qp.bench import run as bench_run
 from otmm_qp.cli import main
 from otmm_qp.output import paths as paths_module
-from otmm_qp.replay import stored_runs
+from otmm_qp.output.run_csv import thinned_rows
 from otmm_qp.replay.stored_runs import MAX_ROWS, read_run
 
 RUN = """
@@ -174,7 +174,7 @@ def test_long_time_series_are_thinned_while_read(run_dir: Path, tmp_path: Path) 
         for k in range(1_000_000):
             yield [str(k), "0", "0"]
 
-    kept = stored_runs._thinned_rows(source_rows(), width, 1000)
+    kept = thinned_rows(source_rows(), width, 1000)
     peak = len(kept)
     assert peak <= 1001 and kept[0][0] == "0" and kept[-1][0] == "999999"
 

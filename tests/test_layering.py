@@ -120,3 +120,122 @@ def test_controllers_import_each_other_relatively() -> None:
         if any(m.startswith("otmm_qp_controllers") for m in _imports(p, module_level=False))
     ]
     assert absolute == []
+
+
+def test_replay_reads_run_folders_only_through_results_dir() -> None:
+    """No replay module parses a CSV or names a run-folder file (issue 17 point 5)."""
+    for path in (PACKAGE / "replay").glob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        modules = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        modules |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) if n.module}
+        assert "csv" not in modules, f"{path.relative_to(ROOT)} imports csv"
+        strings = {
+            n.value
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Constant) and isinstance(n.value, str)
+        }
+        named = {s for s in strings if s in {"summary.csv", "robot.json", "*/*/*.csv"}}
+        assert not named, f"{path.relative_to(ROOT)} names the layout: {sorted(named)}"
+
+
+#: Leaf modules (they import only ``otmm_qp.exceptions``), each a node of its own in the
+#: package graph: safe names and atomic writes are used from every layer.
+LEAF_MODULES = {"otmm_qp.output.paths"}
+
+#: Upward imports left out of the package graph (none: the plants-study headline lives in
+#: ``studies/`` and the trajectory that rebuilds a study task in ``scenarios/``).
+KNOWN_UPWARD_IMPORTS: set[tuple[str, str]] = set()
+
+
+def _package(module: str) -> str:
+    """``otmm_qp.<package>`` of a module (a top-level or leaf module is its own node)."""
+    return module if module in LEAF_MODULES else ".".join(module.split(".")[:2])
+
+
+def _strongly_connected(graph: dict[str, set[str]]) -> list[set[str]]:
+    """Tarjan's strongly connected components of ``graph`` with more than one node."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[set[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in sorted(graph.get(node, ())):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = set()
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.add(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(component)
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_no_import_cycle_between_packages() -> None:
+    """Module-level imports grouped by package point one way (output → runner, never back)."""
+    graph = _graph()
+    for leaf in LEAF_MODULES:
+        assert graph[leaf] <= {"otmm_qp.exceptions"}, f"{leaf} imports {sorted(graph[leaf])}"
+    packages: dict[str, set[str]] = {}
+    upward: set[tuple[str, str]] = set()
+    for module, targets in graph.items():
+        source = _package(module)
+        for target in {_package(t) for t in targets} - {source}:
+            if (module, target) in KNOWN_UPWARD_IMPORTS:
+                upward.add((module, target))
+                continue
+            packages.setdefault(source, set()).add(target)
+    assert upward == KNOWN_UPWARD_IMPORTS, (
+        f"gone, delete from the list: {KNOWN_UPWARD_IMPORTS - upward}"
+    )
+    cycles = _strongly_connected(packages)
+    assert not cycles, "package import cycles: " + "; ".join(
+        " <-> ".join(sorted(c)) for c in cycles
+    )
+
+
+def test_the_runner_and_the_loop_never_import_the_results_layer() -> None:
+    """``runner/`` hands runs to a ``RunSink``; ``output/run_writer.py`` writes them."""
+    for package in ("runner", "simulation"):
+        for path in (PACKAGE / package).glob("*.py"):
+            upward = {
+                m for m in _imports(path, module_level=False) if m.startswith("otmm_qp.output")
+            }
+            assert not upward, f"{path.relative_to(ROOT)} imports {sorted(upward)}"
+
+
+def test_run_suite_takes_a_sink_not_a_path(tmp_path: Path) -> None:
+    """A bare folder path (the old ``out_dir``) is refused in one line before any compute."""
+    import pytest
+
+    from otmm_qp.config.load import parse_config
+    from otmm_qp.runner import run_suite
+
+    experiment = {
+        "name": "E",
+        "robot": {"type": "planar", "link_lengths": [1.0, 0.8]},
+        "q0": [0.0, 0.0],
+        "trajectory": {"type": "quintic_line", "begin": [1.8, 0.0], "end": [0.6, -1.0]},
+        "duration": 0.1,
+        "controllers": [{"name": "pinv", "backend": {"type": "pinv"}}],
+    }
+    suite = parse_config({"name": "s", "loop_modes": ["clik"], "experiments": [experiment]})
+    with pytest.raises(TypeError, match="out must be a RunSink such as .*ResultsWriter"):
+        run_suite(suite, tmp_path, progress=None)  # type: ignore[arg-type]
+    assert list(tmp_path.iterdir()) == []

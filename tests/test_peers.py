@@ -14,6 +14,7 @@ from otmm_qp.config.load import parse_config
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ConfigError, PeerUnavailable, RobotLoadError
 from otmm_qp.output.report import read_summary
+from otmm_qp.output.run_writer import ResultsWriter
 from otmm_qp.robots import peer_models as models
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
@@ -146,7 +147,7 @@ def test_missing_peer_is_skipped_with_hint(
         {"name": "pinv", "backend": {"type": "pinv"}},
     ]
     suite = parse_config({"name": "skip", "loop_modes": ["clik"], "experiments": [experiment]})
-    outcome = run_suite(suite, tmp_path, progress=None)
+    outcome = run_suite(suite, ResultsWriter(tmp_path), progress=None)
     assert [r.result.controller for r in outcome.records] == ["pinv"]
     assert [s.name for _, s in outcome.skipped] == ["pink"]
     with (tmp_path / "summary.csv").open(newline="") as handle:

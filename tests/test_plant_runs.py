@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from otmm_qp.cli import main
-from otmm_qp.plants.headline import main as headline_main
+from otmm_qp.studies.plant_headline import main as headline_main
 from otmm_qp.studies.spec import controller_record, expand_controllers, parse_study
 from otmm_qp.studies.storage import read_episodes
 

@@ -143,3 +143,51 @@ def test_two_plugins_claiming_one_name_are_both_named(
     assert "otmm_qp_example_plugin.clipped_pinv:ClippedPseudoInverseBackend" in message
     assert f"{__name__}:HalfBackend" in message
     assert message.startswith("plugin 'example_clipped_pinv': name registered twice")
+
+
+class UnnamedPinv(Backend):
+    """A third-party backend that declares no ``name`` of its own."""
+
+    def solve(self, state: Any, xdot: np.ndarray, qdot_prev: np.ndarray) -> Any:
+        from otmm_qp.backends.backend import BackendOutput
+        from otmm_qp_controllers.pinv import truncated_pseudoinverse_apply
+
+        return BackendOutput(truncated_pseudoinverse_apply(state, xdot))
+
+
+def test_the_registered_name_is_kept_beside_the_object_not_written_into_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """One class under two registered names: each run is labelled by its own name."""
+    from otmm_qp.config.schema import ControllerConfig
+    from otmm_qp.runner.build import build_controller
+    from otmm_qp_controllers.pinv import PseudoInverseBackend
+
+    for name in ("pinv_a", "pinv_b"):
+        monkeypatch.setitem(registry._cache, (registry.BACKENDS, name), PseudoInverseBackend)
+    monkeypatch.setitem(registry._cache, (registry.BACKENDS, "unnamed"), UnnamedPinv)
+    built = {
+        name: build_controller(
+            ControllerConfig.model_validate(
+                {"name": name, "filters": [{"type": "identity"}], "backend": {"type": name}}
+            ),
+            "c",
+        )
+        for name in ("pinv_a", "pinv_b", "unnamed")
+    }
+    assert {n: c.backend_name for n, c in built.items()} == {
+        "pinv_a": "pinv_a", "pinv_b": "pinv_b", "unnamed": "unnamed"
+    }  # fmt: skip
+    assert all(c.filter_names == ("identity",) for c in built.values())
+    # the objects keep their class's own name: nothing was assigned on them
+    assert [c.backend.name for c in built.values()] == ["pinv", "pinv", "backend"]
+    assert all("name" not in vars(c.backend) for c in built.values())
+    # and the run's result (the summary's filters/backend columns) carries the registered names
+    from otmm_qp.robots.planar_arm import PlanarArm
+    from otmm_qp.simulation import Episode, simulate
+    from otmm_qp.trajectories.circle import CircleTrajectory
+
+    robot, q0 = PlanarArm([1.0, 0.8]), np.array([0.927, -2.5])
+    trajectory = CircleTrajectory(robot.forward(q0), [1.2, 0.0], 0.6, 10.0)
+    result = simulate(Episode(robot, trajectory, q0, 0.02, 0.1), built["unnamed"])
+    assert (result.filters, result.backend, result.error_message) == ("identity", "unnamed", None)

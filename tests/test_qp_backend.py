@@ -256,3 +256,15 @@ def test_the_loop_states_the_step_of_an_infeasible_qp() -> None:
         backend.solve(KinematicState.compute(arm, theta), np.zeros(2), np.zeros(3))
     line = failure_message(7, info.value)
     assert line.startswith("infeasible QP at step 7: joint 'joint1': velocity box")
+
+
+@pytest.mark.parametrize(("old", "new"), [("direct_daqp", "daqp"), ("direct_osqp", "osqp")])
+def test_a_renamed_solver_name_is_refused_naming_the_new_one(old: str, new: str) -> None:
+    from otmm_qp.exceptions import ParameterError
+
+    with pytest.raises(ParameterError) as info:
+        QpBackend(solver=old)
+    assert str(info.value) == (
+        f"solver: {old!r} is now called {new!r} (the persistent {new} session); write solver: {new}"
+    )
+    assert old not in available_solvers()

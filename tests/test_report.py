@@ -11,6 +11,7 @@ import pytest
 from otmm_qp.config.load import parse_config
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.output.report import REPORT_COLUMNS, write_report
+from otmm_qp.output.run_writer import ResultsWriter
 from otmm_qp.runner import run_suite
 
 PNG = bytes.fromhex(
@@ -87,7 +88,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
             ],
         }
     )
-    run_suite(suite, out, progress=None)
+    run_suite(suite, ResultsWriter(out), progress=None)
     (out / "E2" / "fig.png").write_bytes(PNG)
     (out / "claims.md").write_text("# Claims\n\n| claim | verdict |\n|---|---|\n| x | holds |\n")
     return out

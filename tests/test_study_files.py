@@ -11,8 +11,10 @@ import yaml
 
 from otmm_qp.cli import main
 from otmm_qp.config import load
+from otmm_qp.exceptions import ConfigError
+from otmm_qp.studies.oracle import REFERENCE_INDEX
 from otmm_qp.studies.schema import StudyConfig
-from otmm_qp.studies.spec import load_study, plan_study
+from otmm_qp.studies.spec import check_plan_size, load_study, plan_study
 
 GOOD = {
     "name": "small",
@@ -122,12 +124,50 @@ def test_hostile_study_file_is_one_line_exit_2_before_compute(
 
 def test_limits_are_overridable_and_the_plan_matches_them(tmp_path: Path) -> None:
     path = tmp_path / "s.yaml"
-    path.write_text(_with(limits={"max_tasks": 2, "max_episodes": 2}))
+    # 2 tasks × (1 controller × 1 loop mode + 1 reference) = 4 episodes, the plan's count
+    path.write_text(_with(limits={"max_tasks": 2, "max_episodes": 4}))
     plan = plan_study(load_study(path))
-    assert len([e for e in plan.episodes if e.controller >= 0]) == 2  # + one oracle per task
+    assert len(plan.episodes) == 4
+    assert len([e for e in plan.episodes if e.controller == REFERENCE_INDEX]) == 2
+    path.write_text(_with(limits={"max_tasks": 2, "max_episodes": 3}))
+    with pytest.raises(ConfigError, match=re.escape(
+        "2 tasks × (1 controllers × 1 loop modes + 1 reference) = 4 episodes exceeds "
+        "limits.max_episodes = 3"
+    )):  # fmt: skip
+        plan_study(load_study(path))
     path.write_text(_with(limits={"max_tasks": 1}))
     with pytest.raises(Exception, match="limits.max_tasks = 1"):
         plan_study(load_study(path))
+
+
+@pytest.mark.parametrize("reference", [True, False])
+@pytest.mark.parametrize(
+    ("count", "modes", "grid"), [(1, ["clik"], 1), (3, ["clik", "feedforward"], 2)]
+)
+def test_the_episode_bound_counts_exactly_the_planned_episodes(
+    tmp_path: Path, reference: bool, count: int, modes: list[str], grid: int
+) -> None:
+    """``max_episodes = len(plan)`` passes and one less is refused, reference on or off."""
+    controllers = [
+        {"name": "pinv", "backend": {"type": "pinv"}},
+        {"name": "dls", "backend": {"type": "dls"}, "grid": {"damping": [0.01, 0.05][:grid]}},
+    ]
+    text = _with(
+        generators=[{"type": "near_singular", "count": count, "duration": [1.0, 1.5]}],
+        controllers=controllers,
+        loop_modes=modes,
+        reference={"enabled": reference},
+    )
+    path = tmp_path / "s.yaml"
+    path.write_text(text)
+    size = len(plan_study(load_study(path)).episodes)
+    assert size == count * ((1 + grid) * len(modes) + reference)
+    config = load_study(path)
+    check_plan_size(config.model_copy(update={"limits": config.limits.model_copy(
+        update={"max_episodes": size})}))  # fmt: skip
+    with pytest.raises(ConfigError, match=f"= {size} episodes exceeds limits.max_episodes"):
+        check_plan_size(config.model_copy(update={"limits": config.limits.model_copy(
+            update={"max_episodes": size - 1})}))  # fmt: skip
 
 
 def test_one_loader_reads_run_and_study_files(tmp_path: Path) -> None:

@@ -21,8 +21,9 @@ from otmm_qp.backends import Backend, BackendOutput
 from otmm_qp.cli import main
 from otmm_qp.controller import Controller
 from otmm_qp.filters.task_filter import TaskFilter
+from otmm_qp.plants import IdealPlant, PlantChain, PlantStep
 from otmm_qp.robots.planar_arm import PlanarArm
-from otmm_qp.simulation import Episode, Integrator, simulate
+from otmm_qp.simulation import Episode, simulate
 from otmm_qp.state import KinematicState
 from otmm_qp.studies.storage import read_episodes
 from otmm_qp.trajectories.circle import CircleTrajectory
@@ -105,25 +106,77 @@ class RaisingFilter(TaskFilter):
         return xdot, type("Report", (), {"p": 0.0, "active": False})()
 
 
-def test_a_raising_filter_and_a_raising_integrator_stop_the_run() -> None:
+def test_a_raising_filter_stops_the_run() -> None:
     result = simulate(_episode(), Controller("f", [RaisingFilter()], PseudoInverseBackend()))
     assert result.steps == FAIL_AT and "a plugin raised MemoryError: filter" in str(
         result.error_message
     )
 
-    class Broken(Integrator):
-        def advance(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-            raise ValueError("integration")
 
-    result = simulate(_episode(), Controller("p", [], PseudoInverseBackend()), integrator=Broken())
-    assert result.steps == 1
-    assert result.error_message == "step 1: a plugin raised ValueError: integration"
+class BrokenBody(IdealPlant):
+    """The ideal body for FAIL_AT periods, then raises or returns ``BrokenBody.outcome``."""
+
+    outcome: Any = None
+
+    def reset(self, robot: Any, q0: np.ndarray, dt: float) -> None:
+        super().reset(robot, q0, dt)
+        self.calls = 0
+
+    def advance(self, q: np.ndarray, qdot: np.ndarray) -> PlantStep:
+        self.calls += 1
+        step = super().advance(q, qdot)
+        if self.calls <= FAIL_AT:
+            return step
+        if isinstance(self.outcome, BaseException):
+            raise self.outcome
+        field, value = self.outcome
+        return step._replace(**{field: value})
 
 
-def test_the_default_integrator_is_the_euler_step_of_the_robot() -> None:
+#: What the plant's body does after FAIL_AT periods, and the message the run keeps.
+PLANT_FAILURES: dict[str, tuple[Any, str]] = {
+    "ValueError": (ValueError("integration"), "a plugin raised ValueError: integration"),
+    "SystemExit": (SystemExit(4), "a plugin raised SystemExit: 4"),
+    "NaN q": (("q", np.array([0.1, np.nan])), "the plant returned q containing NaN or inf"),
+    "inf qdot": (("qdot", np.array([np.inf, 0.0])), "the plant returned qdot containing NaN"),
+    "wrong shape q": (("q", np.zeros(3)), r"returned q of type ndarray and shape \(3,\); expected"),
+    "list qdot": (("qdot", [0.0, 0.0]), r"returned qdot of type list; expected a float array"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PLANT_FAILURES))
+def test_a_failing_plant_stops_its_run_with_its_steps_kept(case: str) -> None:
+    outcome, message = PLANT_FAILURES[case]
+    body = BrokenBody()
+    body.outcome = outcome
     episode = _episode()
     plain = simulate(episode, Controller("p", [], PseudoInverseBackend()))
-    again = simulate(episode, Controller("p", [], PseudoInverseBackend()), integrator=Integrator())
+    result = simulate(
+        episode, Controller("p", [], PseudoInverseBackend()), plant=PlantChain([body])
+    )
+    # The period after step FAIL_AT fails: FAIL_AT + 1 steps recorded, as the ideal plant's.
+    assert result.steps == FAIL_AT + 1
+    assert result.error_message is not None and "\n" not in result.error_message
+    assert result.error_message.startswith(f"step {FAIL_AT + 1}: ")
+    assert re.search(message, result.error_message), result.error_message
+    np.testing.assert_array_equal(result.q, plain.q[: FAIL_AT + 1])
+    np.testing.assert_array_equal(result.qdot, plain.qdot[: FAIL_AT + 1])
+    assert np.all(np.isfinite(result.q)) and np.all(np.isfinite(result.qdot_actual))
+
+
+def test_a_plant_interrupt_stays_an_interrupt() -> None:
+    body = BrokenBody()
+    body.outcome = KeyboardInterrupt()
+    with pytest.raises(KeyboardInterrupt):
+        simulate(_episode(), Controller("p", [], PseudoInverseBackend()), plant=PlantChain([body]))
+
+
+def test_the_default_plant_is_the_euler_step_of_the_robot() -> None:
+    episode = _episode()
+    plain = simulate(episode, Controller("p", [], PseudoInverseBackend()))
+    again = simulate(
+        episode, Controller("p", [], PseudoInverseBackend()), plant=PlantChain([IdealPlant()])
+    )
     np.testing.assert_array_equal(plain.q, again.q)
     # q_{k+1} = q_k + q̇_k dt, exactly
     np.testing.assert_array_equal(plain.q[1:], plain.q[:-1] + plain.qdot[:-1] * episode.dt)
@@ -175,6 +228,32 @@ def test_run_keeps_every_other_run_and_exits_2(
         ("B", "good", "20", "True"),
     ]
     assert (out / "A" / "clik" / "bad.csv").is_file() and (out / "report.html").is_file()
+
+
+def test_a_failing_plant_keeps_every_other_run_and_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(registry._cache, (registry.PLANTS, "broken"), BrokenBody)
+    monkeypatch.setattr(BrokenBody, "outcome", RuntimeError("servo bus"))
+    config = tmp_path / "c.yaml"
+    config.write_text(
+        GOOD.replace(
+            "backend: {type: misbehaving}", "backend: {type: pinv}\n        plant: {type: broken}"
+        )
+    )
+    out = tmp_path / "out"
+    status = main(["run", str(config), "--out", str(out), "--quiet", "--no-figures"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2
+    assert len(err) == 1, err
+    message = f"step {FAIL_AT + 1}: a plugin raised RuntimeError: servo bus"
+    assert err[0] == f"otmm-qp: error: A/clik/bad: {message}"
+    rows = list(csv.DictReader((out / "summary.csv").read_text().splitlines()))
+    assert [(r["experiment"], r["controller"], r["steps"], r["completed"]) for r in rows] == [
+        ("A", "bad", str(FAIL_AT + 1), "False"),
+        ("A", "good", "20", "True"),
+        ("B", "good", "20", "True"),
+    ]
 
 
 def test_study_stores_every_episode_and_exits_2(

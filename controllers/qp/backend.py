@@ -67,7 +67,7 @@ class QpBackend(BoxQpBackend):
             when neither is given.
         solver: ``daqp``, ``proxsuite``, ``osqp`` (persistent sessions, warm started) or
             another installed qpsolvers backend (``quadprog``, ``clarabel``, ``proxqp``:
-            solved from scratch each step); ``direct_<name>`` are aliases.
+            solved from scratch each step).
         limits: Limit objects or ``{type: NAME, ...}`` entries (:mod:`otmm_qp.limits.options`);
             None: the robot's speed limit and ``{type: position, gain: 0.5}``.
         posture: The posture cost ``{weight: w_p, gain: g_p, q_nominal: θ_nom}``

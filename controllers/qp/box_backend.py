@@ -15,7 +15,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from otmm_qp.backends.backend import Backend
-from otmm_qp.exceptions import InfeasibleProblem, SolverNotFound
+from otmm_qp.exceptions import InfeasibleProblem
 from otmm_qp.limits import LimitBox, LimitSet, Row
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -29,6 +29,7 @@ from .solvers import (
     Solution,
     available_solvers,
     make_session,
+    unknown_solver,
 )
 
 #: Tolerance of :meth:`BoxQpBackend.classify` on a solver's answer (solvers stop at ~1e-10).
@@ -101,7 +102,7 @@ class BoxQpBackend(Backend):
     ) -> None:
         installed = available_solvers() if solvers is None else solvers
         if solver not in installed:
-            raise SolverNotFound(solver, installed)
+            raise unknown_solver(solver, installed)
         self.solver = solver
         self.limits = limits
         self.box = LimitBox(limits.boxes)

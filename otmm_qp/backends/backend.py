@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import abc
-from typing import Final, NamedTuple
+from typing import ClassVar, Final, NamedTuple
 
 import numpy as np
 
@@ -95,8 +95,9 @@ class Backend(abc.ABC):
     allocate persistent solvers there.
     """
 
-    #: Registered name (informative).
-    name: str = "backend"
+    #: The class's own name (e.g. ``"dls"``), a class constant never assigned on an instance;
+    #: the name a backend was registered under is kept beside it (``Controller.backend_name``).
+    name: ClassVar[str] = "backend"
     #: Whether every returned ``q̇`` honours the robot's speed limits. When False, the
     #: controller reports a faster step ``saturated`` (:func:`otmm_qp.status.classify`).
     enforces_limits: bool = False

@@ -30,16 +30,17 @@ REFERENCE = "pink (daqp)"
 PEERS = ("pink", "mink", "drake")
 #: QP solvers timed through pink and mink; the otmm-qp ``qp`` solvers compared with each.
 PEER_SOLVERS = ("daqp", "proxqp", "osqp")
-OUR_SOLVERS = {
-    "daqp": "daqp",
-    "direct_daqp": "daqp",
-    "proxqp": "proxqp",
-    "direct_proxsuite": "proxqp",
-    "osqp": "osqp",
-    "direct_osqp": "osqp",
+#: The otmm-qp ``qp`` solvers timed: solver name → (how it runs, the peers' solver it is
+#: compared with). ``persistent``: a session set up once, updated in place and warm started;
+#: ``qpsolvers``: the stateless qpsolvers call, the problem set up every step.
+OUR_SOLVERS: dict[str, tuple[str, str]] = {
+    "daqp": ("persistent", "daqp"),
+    "proxsuite": ("persistent", "proxqp"),
+    "proxqp": ("qpsolvers", "proxqp"),
+    "osqp": ("persistent", "osqp"),
 }
-#: The persistent daqp session of ``qp`` (the solver path timed with the fast path off).
-PERSISTENT_DAQP = "direct_daqp"
+#: The solver of the pipeline timed with the fast path off (its persistent session).
+PERSISTENT_DAQP = "daqp"
 EVERY_STEP = "QP every step"
 
 
@@ -62,6 +63,20 @@ class PipelineSpec:
     peer: bool = False
 
 
+def qp_label(solver: str, *notes: str) -> str:
+    """``qp (<solver>, <how it runs>[, notes])``, e.g. ``qp (daqp, persistent)``."""
+    return f"qp ({', '.join((solver, OUR_SOLVERS[solver][0], *notes))})"
+
+
+def qp_label_solver(label: str) -> str | None:
+    """The solver of a ``qp (<solver>, ...)`` label (``otmm+`` in front allowed), else None."""
+    head, _, rest = label.partition(" (")
+    if head not in ("qp", "otmm+qp") or not rest:
+        return None
+    solver = rest.split(",")[0].rstrip(")")
+    return solver if solver in OUR_SOLVERS else None
+
+
 def pipeline_specs(full: bool) -> list[PipelineSpec]:
     """Every pipeline of a scenario: each backend alone and with OTMM, then the peers.
 
@@ -73,15 +88,15 @@ def pipeline_specs(full: bool) -> list[PipelineSpec]:
         ("dls", "dls", {"damping": 0.05}),
         ("dls_adaptive", "dls_adaptive", {"alpha": 0.003, "sigma_threshold": 0.05}),
     ]
-    solvers = list(OUR_SOLVERS) if full else ["daqp", PERSISTENT_DAQP]
-    backends += [(f"qp ({solver})", "qp", {"solver": solver}) for solver in solvers]
+    solvers = list(OUR_SOLVERS) if full else [PERSISTENT_DAQP]
+    backends += [(qp_label(solver), "qp", {"solver": solver}) for solver in solvers]
     specs: list[PipelineSpec] = []
     for label, backend, params in backends:
         specs.append(PipelineSpec(label, backend, params))
         specs.append(PipelineSpec(f"otmm+{label}", backend, params, otmm=True))
     specs.append(
         PipelineSpec(
-            f"otmm+qp ({PERSISTENT_DAQP}, {EVERY_STEP})", "qp",
+            f"otmm+{qp_label(PERSISTENT_DAQP, EVERY_STEP)}", "qp",
             {"solver": PERSISTENT_DAQP, "fast_path": False}, otmm=True,
         )
     )  # fmt: skip
@@ -155,5 +170,4 @@ def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction]
 
 def _plain_controller(spec: PipelineSpec) -> Controller:
     backend = registry.create(registry.BACKENDS, spec.backend, spec.params, spec.label)
-    backend.name = spec.backend
-    return Controller(spec.label, [], backend)
+    return Controller(spec.label, [], backend, backend_name=spec.backend)

@@ -63,10 +63,10 @@ class Scenario:
 def otmm_controller(name: str, backend: str, params: dict[str, object]) -> Controller:
     """OTMM (:data:`OTMM_PARAMS`) in front of a registered backend."""
     task_filter = registry.create(registry.FILTERS, "otmm", OTMM_PARAMS, f"{name}.filters.0")
-    task_filter.name = "otmm"
     backend_object = registry.create(registry.BACKENDS, backend, params, f"{name}.backend")
-    backend_object.name = backend
-    return Controller(name, [task_filter], backend_object)
+    return Controller(
+        name, [task_filter], backend_object, filter_names=["otmm"], backend_name=backend
+    )
 
 
 def record(

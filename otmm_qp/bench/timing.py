@@ -14,7 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from otmm_qp.bench.pipelines import EVERY_STEP, OUR_SOLVERS, PEERS, REFERENCE, StepFunction
+from otmm_qp.bench.pipelines import (
+    EVERY_STEP,
+    OUR_SOLVERS,
+    PEERS,
+    REFERENCE,
+    StepFunction,
+    qp_label_solver,
+)
 from otmm_qp.robots.robot import FloatArray
 
 LIBRARIES = (
@@ -128,10 +135,10 @@ def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                    PINV_TARGET * reference)
         )  # fmt: skip
     for name, value in median.items():
-        if "qp (" not in name or name.split(" ")[0] in PEERS:
+        solver = qp_label_solver(name)
+        if solver is None:
             continue
-        solver = name.split("(")[1].split(",")[0].rstrip(")")
-        peer = f"pink ({OUR_SOLVERS[solver]})"
+        peer = f"pink ({OUR_SOLVERS[solver][1]})"
         if peer in median:
             checks.append(_check(f"{name} ≤ {peer}", value, median[peer]))
     return checks

@@ -53,6 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run a config (the embedded paper reproduction by default)."""
     from otmm_qp.output.results_dir import check_out_argument, claim_results_dir
+    from otmm_qp.output.run_writer import ResultsWriter
     from otmm_qp.runner.run import prepare_suite, run_suite
 
     figures = "none" if args.no_figures else args.figures
@@ -72,7 +73,12 @@ def run(args: argparse.Namespace) -> int:
             hook = figure_hook(suite.metrics.sigma_s, per_run=figures == "all")
         progress = None if args.quiet else sys.stderr
         outcome = run_suite(
-            suite, out_dir, path.name, progress=progress, after_experiment=hook, prepared=prepared
+            suite,
+            ResultsWriter(out_dir),
+            path.name,
+            progress=progress,
+            after_experiment=hook,
+            prepared=prepared,
         )
         if suite.claims == "paper":
             from otmm_qp.output.claims import judge_paper_claims, write_claims

@@ -47,6 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--force", action="store_true", help="replace the dataset of another study in --out"
     )
     parser.add_argument("--no-report", action="store_true", help="do not write the report")
+    parser.add_argument(
+        "--highlight", help="a controller placed as 'ours' on each group's Pareto front (report)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -78,6 +81,12 @@ def run(args: argparse.Namespace) -> int:
     config = load_study(args.file)
     plan = plan_study(config, str(args.file))
     out = given if given is not None else Path("results") / safe_name(config.name)
+    names = [c.name for c in plan.controllers]
+    if args.highlight is not None and args.highlight not in names:
+        raise ConfigError(
+            "--highlight",
+            f"no controller {args.highlight!r:.60} in the study; have: {', '.join(names)}",
+        )
     for name, reason in plan.skipped:
         print(f"otmm-qp: skipped controller {name}: {reason}", file=sys.stderr)
     if args.quiet:
@@ -96,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         from otmm_qp.studies.storage import writing_report
 
         with writing_report(out):
-            html, markdown = write_study_report(out)
+            html, markdown = write_study_report(out, args.highlight)
         print(f"  report: {html}\n          {markdown}")
     if outcome.interrupted:
         print(

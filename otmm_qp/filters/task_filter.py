@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import abc
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -39,8 +39,9 @@ class TaskFilter(abc.ABC):
     shared, never recomputed) and the weighted command ``ẋ_w``, shape ``(n,)``.
     """
 
-    #: Registered name (set by the registry user; informative only).
-    name: str = "filter"
+    #: The class's own name (e.g. ``"otmm"``), a class constant never assigned on an instance;
+    #: the name a filter was registered under is kept beside it (``Controller.filter_names``).
+    name: ClassVar[str] = "filter"
 
     @abc.abstractmethod
     def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:

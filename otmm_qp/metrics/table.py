@@ -1,8 +1,12 @@
 """The one table of metrics: name, label, unit, number format and direction.
 
 Every reader indexes it — the ``summary.csv``/``summary.md`` columns, the run report's table
-and ranking, the Pareto index and the study rows — so a new metric is one :class:`Metric` row
-here plus its value in :func:`~otmm_qp.metrics.metrics.compute_metrics` (and its test).
+and ranking, the Pareto index, the study rows and the study report — so a new metric is one
+:class:`Metric` row here plus its value in :func:`~otmm_qp.metrics.metrics.compute_metrics`
+(and its test). A study metric (a column a study row adds beyond ``compute_metrics``, computed
+in ``otmm_qp/studies/``) is one row of :data:`STUDY_METRICS` plus its value where the study
+computes it; the study report's lists (:data:`STUDY_MEDIANS`, :data:`STUDY_PAIRED`,
+:data:`STUDY_OBJECTIVES`) name rows of either table.
 """
 
 from __future__ import annotations
@@ -81,7 +85,23 @@ METRICS: tuple[Metric, ...] = (
     Metric("status_switches", "status switches", "", "d", lower_is_better=None),
 )
 
-_BY_NAME = {m.name: m for m in METRICS}
+#: Columns a study row adds to :data:`METRICS`, computed in ``otmm_qp/studies/``:
+#: ``oracle_relative_error`` = max_error − reference.max_error (``studies/report.py``),
+#: the speed and jump ratios to each joint's own velocity limit (``studies/criteria.py``).
+STUDY_METRICS: tuple[Metric, ...] = (
+    Metric("oracle_relative_error", "oracle-relative max error", "m"),
+    Metric("max_speed_ratio", "peak |q̇_j|/q̇_max,j", ""),
+    Metric("max_jump_ratio", "max |Δq̇_j|/q̇_max,j", ""),
+)
+#: Metrics the study report summarises by median + bootstrap interval (after the headline
+#: accuracy), in column order.
+STUDY_MEDIANS: tuple[str, ...] = ("rms_error", "max_error", "max_joint_speed", "max_jump")
+#: Metrics the study report compares pairwise (the headline accuracy is prepended).
+STUDY_PAIRED: tuple[str, ...] = ("max_joint_speed",)
+#: The Pareto objectives of a study group (the headline accuracy is prepended): all minimised.
+STUDY_OBJECTIVES: tuple[str, ...] = ("max_joint_speed", "max_jump")
+
+_BY_NAME = {m.name: m for m in (*METRICS, *STUDY_METRICS)}
 
 
 def metric(name: str) -> Metric:

@@ -18,11 +18,12 @@ from otmm_qp.output.folders import (
     claim_folder,
     remove_kind_files,
 )
+from otmm_qp.output.results import CLAIMS_MD, REPORT_HTML, REPORT_MD, SUMMARY_CSV, SUMMARY_MD
 
 __all__ = ["LOCK_NAME", "RESULT_FILES", "check_out_argument", "claim_results_dir"]
 
 #: Files of a results folder's top level that otmm-qp writes.
-RESULT_FILES = ("summary.csv", "summary.md", "claims.md", "report.html", "report.md")
+RESULT_FILES = (SUMMARY_CSV, SUMMARY_MD, CLAIMS_MD, REPORT_HTML, REPORT_MD)
 
 
 def _holds_results(folder: Path) -> bool:

@@ -7,16 +7,13 @@ This is otmm-qp's behaviour before plants existed, and the default.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import Constraints
 
-if TYPE_CHECKING:  # the simulation package imports this one
-    from otmm_qp.simulation.integrator import Integrator
-
-__all__ = ["IdealPlant", "IntegratorPlant"]
+__all__ = ["IdealPlant"]
 
 
 class IdealPlant(Plant):
@@ -40,27 +37,3 @@ class IdealPlant(Plant):
         if self._robot is None:
             raise RuntimeError("IdealPlant.advance called before reset")
         return PlantStep(self._robot.integrate(q, qdot, self._dt), qdot)
-
-
-class IntegratorPlant(IdealPlant):
-    """The ideal plant whose body is a given :class:`~otmm_qp.simulation.integrator.Integrator`.
-
-    What :func:`~otmm_qp.simulation.simulate.simulate` uses when it gets an ``integrator``
-    and no plant (not registered: an integrator is code, not config).
-
-    Args:
-        integrator: The integration stage (``start(robot, dt)``, ``advance(q, q̇) -> q``).
-    """
-
-    def __init__(self, integrator: Integrator) -> None:
-        super().__init__()
-        self.integrator = integrator
-
-    def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:
-        """Start the integrator on ``robot`` with period ``dt`` [s]."""
-        super().reset(robot, q0, dt)
-        self.integrator.start(robot, dt)
-
-    def advance(self, q: FloatArray, qdot: FloatArray) -> PlantStep:
-        """``integrator.advance(q, q̇)``; the actual velocity is the command."""
-        return PlantStep(self.integrator.advance(q, qdot), qdot)

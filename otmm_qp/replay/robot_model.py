@@ -4,7 +4,8 @@ The results of ``otmm-qp run`` hold joint coordinates and end-effector positions
 the robot block of the config. A replay therefore uses, in order:
 
 1. ``<experiment folder>/robot.json`` (``{"type": ..., "params": {...}}``, the config's
-   robot block) when present; :func:`write_robot_record` writes it.
+   robot block) when present; :func:`record_robots` writes it (through
+   :meth:`~otmm_qp.output.results.ResultsDir.write_robot_record`).
 2. For 2-D positions, a planar arm whose link lengths are the least-squares solution of the
    forward kinematics over all stored steps (linear in the lengths):
 
@@ -18,7 +19,6 @@ the robot block of the config. A replay therefore uses, in order:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -26,23 +26,12 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.output.paths import atomic_write_bytes
+from otmm_qp.output.results import ROBOT_JSON, ResultsDir
 from otmm_qp.replay.stored_runs import StoredRun
 from otmm_qp.robots.robot import FloatArray, Robot
 
-ROBOT_RECORD = "robot.json"
 #: Largest position mismatch [m] accepted when recovering a robot from its time series.
 MATCH_TOLERANCE = 1e-6
-
-
-def write_robot_record(experiment_dir: Path, robot_type: str, params: dict[str, Any]) -> Path:
-    """Write ``experiment_dir/robot.json`` so a later replay rebuilds the exact robot."""
-    experiment_dir.mkdir(parents=True, exist_ok=True)
-    path = experiment_dir / ROBOT_RECORD
-    text = json.dumps({"type": robot_type, "params": params}, indent=1, default=str)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, (text + "\n").encode("utf-8"))
-    return path
 
 
 def _sample_rows(run: StoredRun, count: int = 8) -> list[int]:
@@ -76,7 +65,7 @@ def fit_planar_arm(runs: Sequence[StoredRun]) -> Robot:
     residual = float(np.max(np.abs(matrix @ lengths - target)))
     if residual > MATCH_TOLERANCE * max(1.0, float(np.abs(target).max())) or np.any(lengths <= 0):
         raise ConfigError(
-            str(runs[0].path.parent.parent / ROBOT_RECORD),
+            str(runs[0].path.parent.parent / ROBOT_JSON),
             "cannot recover the planar arm's link lengths from the stored positions "
             f"(residual {residual:.2g} m); write this robot.json with the config's robot block",
         )
@@ -120,7 +109,7 @@ def identify_urdf_arm(runs: Sequence[StoredRun]) -> Robot:
         if frame is not None:
             return PinocchioArm(name=name, frame=frame, task="position")
     raise ConfigError(
-        str(run.path.parent.parent / ROBOT_RECORD),
+        str(run.path.parent.parent / ROBOT_JSON),
         f"no example-robot-data arm ({', '.join(sorted(ARMS))}) has joints "
         f"{', '.join(run.joint_names)} and these end-effector positions; write this robot.json "
         'with the config\'s robot block, e.g. {"type": "pinocchio", "params": {"urdf": "..."}}',
@@ -136,10 +125,13 @@ def load_robot(runs: Sequence[StoredRun]) -> Robot:
     """
     from otmm_qp.runner.build import captured_stderr
 
-    record = runs[0].path.parent.parent / ROBOT_RECORD
-    if record.is_file() or record.is_symlink():
-        robot = _recorded_robot(record)
-        check_reproduces(robot, runs, str(record))
+    experiment_dir = runs[0].path.parent.parent
+    results = ResultsDir(experiment_dir.parent)
+    spec = results.read_robot_record(experiment_dir)
+    if spec is not None:
+        field = str(results.robot_json(experiment_dir))
+        robot = _recorded_robot(spec, field)
+        check_reproduces(robot, runs, field)
         return robot
     if runs[0].dimension == 2:
         return fit_planar_arm(runs)
@@ -147,44 +139,23 @@ def load_robot(runs: Sequence[StoredRun]) -> Robot:
         return identify_urdf_arm(runs)
 
 
-#: Largest ``robot.json`` read [bytes].
-MAX_RECORD_BYTES = 64 * 1024
 #: Largest stored-vs-recomputed position mismatch accepted for a recorded robot [m, relative
 #: to max(1 m, the largest coordinate)]: the CSVs keep 9 significant digits.
 RECORD_TOLERANCE = 1.0e-5
 
 
-def _recorded_robot(record: Path) -> Robot:
-    """The robot a ``robot.json`` describes, built as a config's robot block is.
+def _recorded_robot(spec: dict[str, Any], field: str) -> Robot:
+    """The robot a ``robot.json`` record (:meth:`ResultsDir.read_robot_record`) describes.
+
+    Built as a config's robot block is.
 
     Raises:
-        ConfigError: A symlink, a file over :data:`MAX_RECORD_BYTES`, not a JSON object with a
-            string ``type`` and an object ``params``, or parameters the robot refuses.
+        ConfigError: Parameters the robot refuses, naming ``field``.
     """
     from otmm_qp.config.schema import PluginConfig
     from otmm_qp.runner.build import load_robot as build_robot
 
-    field = str(record)
-    if record.is_symlink():
-        raise ConfigError(field, "is a symlink; a robot record must be a plain file")
-    try:
-        if record.stat().st_size > MAX_RECORD_BYTES:
-            raise ConfigError(field, f"is larger than {MAX_RECORD_BYTES} bytes; not a robot record")
-        spec = json.loads(record.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError) as error:
-        reason = "nested too deeply" if isinstance(error, RecursionError) else _short(error)
-        raise ConfigError(field, f"malformed robot record: {reason}") from None
-    if not isinstance(spec, dict) or not isinstance(spec.get("type"), str):
-        raise ConfigError(field, 'expected {"type": NAME, "params": {...}} (the robot block)')
-    params = spec.get("params") or {}
-    if not isinstance(params, dict) or "type" in params:
-        raise ConfigError(f"{field}: params", "must be an object of robot parameters")
-    return build_robot(PluginConfig(type=spec["type"], **params), f"{field}: robot")
-
-
-def _short(error: BaseException) -> str:
-    text = str(error).splitlines()[0] if str(error) else type(error).__name__
-    return text if len(text) <= 120 else text[:117] + "..."
+    return build_robot(PluginConfig(type=spec["type"], **spec["params"]), f"{field}: robot")
 
 
 def check_reproduces(robot: Robot, runs: Sequence[StoredRun], field: str) -> None:
@@ -238,13 +209,12 @@ def record_robots(results_dir: Path, robots: dict[str, tuple[str, dict[str, Any]
     Returns:
         The files written (experiments without stored runs are skipped).
     """
-    from otmm_qp.replay.stored_runs import discover_runs
-
+    results = ResultsDir(results_dir)
     folders: dict[str, Path] = {}
-    for run in discover_runs(results_dir):
-        folders.setdefault(run.experiment, run.path.parent.parent)
+    for run in results.run_files():
+        folders.setdefault(run.experiment, run.experiment_dir)
     return [
-        write_robot_record(folders[name], robot_type, params)
+        results.write_robot_record(folders[name], robot_type, params)
         for name, (robot_type, params) in robots.items()
         if name in folders
     ]

@@ -1,32 +1,24 @@
-"""Read the stored time series of a results folder back (a replay never re-simulates).
+"""The stored time series of a results folder as arrays (a replay never re-simulates).
 
-Layout written by ``otmm-qp run`` (see ``otmm_qp/runner/run.py``)::
-
-    RESULTS_DIR/summary.csv                               one row per run (display names)
-    RESULTS_DIR/<experiment>/<loop_mode>/<controller>.csv one row per control step
-
-A time-series CSV is recognised by its header (``t``, ``q_*``, ``sigma_min``), so the
-folder names may be any safe form of the display names; ``summary.csv`` gives the
-display names back when a folder or file name matches one of its rows.
+The folder's layout and the CSV format are :class:`~otmm_qp.output.results.ResultsDir`'s:
+it finds the runs (``<experiment>/<loop_mode>/<controller>.csv``, recognised by their
+header ``t``, ``q_*``, ``sigma_min``, named by ``summary.csv``) and streams each file,
+thinned to :data:`MAX_ROWS`. This module turns the text cells into arrays, a value beyond
+:data:`MAX_MAGNITUDE` (or text) into NaN.
 """
 
 from __future__ import annotations
 
-import csv
-import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.output.paths import safe_name
+from otmm_qp.output.results import ResultsDir, RunFile
+from otmm_qp.output.run_csv import MAX_RUN_ROWS, RunTable, read_run_table
 from otmm_qp.robots.robot import FloatArray
-
-#: Folders under a results directory that never hold run time series.
-_SKIPPED_FOLDERS = frozenset({"replays", "figures"})
-_REQUIRED_COLUMNS = ("t", "sigma_min")
 
 
 @dataclass
@@ -77,7 +69,7 @@ class StoredRun:
 
 #: Most rows kept of one time series; longer ones are thinned evenly while they are read
 #: (a replay shows at most a few hundred frames), so a 10^7-row CSV is never held whole.
-MAX_ROWS = 20_000
+MAX_ROWS = MAX_RUN_ROWS
 #: Largest magnitude read as a number; beyond it (1e300...) a value is no position, angle or
 #: time a run produces and is read as NaN, like text.
 MAX_MAGNITUDE = 1.0e9
@@ -94,31 +86,6 @@ def _float_column(rows: list[list[str]], index: int) -> FloatArray:
     return values
 
 
-def _thinned_rows(reader: Iterator[list[str]], width: int, limit: int) -> list[list[str]]:
-    """Complete rows of ``reader`` (``width`` cells), thinned to at most ``limit``, in order.
-
-    Every ``stride``-th row is kept; when ``limit`` is passed, every other kept row is dropped
-    and ``stride`` doubles, so memory stays bounded in one pass. The last row is always kept.
-    """
-    kept: list[list[str]] = []
-    stride, index, last = 1, 0, None
-    for row in reader:
-        if len(row) != width:
-            continue
-        if index % stride == 0:
-            kept.append(row)
-            if len(kept) > limit:
-                kept = kept[::2]
-                stride *= 2
-            last = None
-        else:
-            last = row
-        index += 1
-    if last is not None:
-        kept.append(last)
-    return kept
-
-
 def _finite_time(text: str) -> bool:
     try:
         return abs(float(text)) <= MAX_MAGNITUDE
@@ -126,28 +93,23 @@ def _finite_time(text: str) -> bool:
         return False
 
 
-def _is_time_series(header: Sequence[str]) -> bool:
-    return all(c in header for c in _REQUIRED_COLUMNS) and any(c.startswith("q_") for c in header)
-
-
 def read_run(path: Path, experiment: str, loop_mode: str, controller: str) -> StoredRun:
-    """Read one time-series CSV.
+    """Read one time-series CSV (:func:`~otmm_qp.output.results.read_run_table`).
 
     Raises:
         ConfigError: The file is unreadable, has no rows, or lacks the columns
             ``t``, ``q_*``, ``sigma_min`` and the end-effector position ``x, y[, z]``.
     """
-    try:
-        with path.open(newline="") as handle:
-            reader = csv.reader(handle)
-            header = next(reader, [])
-            if not _is_time_series(header):
-                raise ConfigError(
-                    str(path), "not a run time series (needs columns t, q_*, sigma_min)"
-                )
-            rows = _thinned_rows(reader, len(header), MAX_ROWS)
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise ConfigError(str(path), f"cannot read the time series: {error}") from None
+    return stored_run(read_run_table(path, MAX_ROWS), experiment, loop_mode, controller)
+
+
+def stored_run(table: RunTable, experiment: str, loop_mode: str, controller: str) -> StoredRun:
+    """The arrays of one run time series' text cells.
+
+    Raises:
+        ConfigError: No complete row with a finite time, or no end-effector position columns.
+    """
+    path, header, rows = table.path, list(table.header), table.rows
     t_index = header.index("t")
     rows = [row for row in rows if _finite_time(row[t_index])]
     if not rows:
@@ -177,72 +139,26 @@ def read_run(path: Path, experiment: str, loop_mode: str, controller: str) -> St
     )
 
 
-def _summary_names(results_dir: Path) -> list[tuple[str, str, str]]:
-    """``(experiment, loop_mode, controller)`` of every ``summary.csv`` row, in order."""
-    path = results_dir / "summary.csv"
-    if not path.is_file():
-        return []
-    try:
-        with path.open(newline="") as handle:
-            return [
-                (row["experiment"], row["loop_mode"], row["controller"])
-                for row in csv.DictReader(handle)
-                if row.get("experiment") and row.get("loop_mode") and row.get("controller")
-            ]
-    except (OSError, KeyError, csv.Error, UnicodeDecodeError):
-        return []
-
-
-def _file_forms(name: str) -> set[str]:
-    """File-name forms a display name may have been written under."""
-    forms = {name, "".join(c if c.isalnum() or c in "-_." else "_" for c in name)}
-    forms.add(re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".-"))
-    forms.add(safe_name(name))
-    return forms
-
-
-def _display_name(stored: str, candidates: Sequence[str]) -> str:
-    for candidate in candidates:
-        if stored in _file_forms(candidate):
-            return candidate
-    return stored
-
-
 def discover_runs(results_dir: Path) -> list[StoredRun]:
     """Every run time series under ``results_dir``, in ``summary.csv`` order where known.
 
     Raises:
         ConfigError: ``results_dir`` is not a folder, or holds no run time series.
     """
-    if not results_dir.is_dir():
-        raise ConfigError("RESULTS_DIR", f"{results_dir} is not a folder")
-    names = _summary_names(results_dir)
-    runs: list[StoredRun] = []
-    for path in sorted(results_dir.glob("*/*/*.csv")):
-        relative = path.relative_to(results_dir)
-        if relative.parts[0] in _SKIPPED_FOLDERS or path.is_symlink():
-            continue
-        try:
-            with path.open(newline="") as handle:
-                header = next(csv.reader(handle), [])
-        except (OSError, UnicodeDecodeError, csv.Error):
-            continue
-        if not _is_time_series(header):
-            continue
-        experiment = _display_name(relative.parts[0], [n[0] for n in names])
-        loop_mode = _display_name(relative.parts[1], [n[1] for n in names])
-        controllers = [n[2] for n in names if n[0] == experiment and n[1] == loop_mode]
-        controller = _display_name(path.stem, controllers)
-        runs.append(read_run(path, experiment, loop_mode, controller))
-    if not runs:
+    results = ResultsDir(results_dir)
+    files = results.run_files()
+    if not files:
         raise ConfigError(
             "RESULTS_DIR",
             f"{results_dir} holds no run time series (<experiment>/<loop_mode>/<controller>.csv);"
             " run an experiment into it first (otmm-qp run CONFIG --out DIR)",
         )
-    order = {name: i for i, name in enumerate(names)}
-    runs.sort(key=lambda r: order.get((r.experiment, r.loop_mode, r.controller), len(order)))
-    return runs
+    return [_read(results, run) for run in files]
+
+
+def _read(results: ResultsDir, run: RunFile) -> StoredRun:
+    table = results.read_run(run, MAX_ROWS)
+    return stored_run(table, run.experiment, run.loop_mode, run.controller)
 
 
 def select_runs(

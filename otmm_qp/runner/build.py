@@ -70,18 +70,21 @@ def build_controller(
     Raises:
         ConfigError: Unknown plugin name or parameter, or a value out of range.
     """
-    filters = []
-    for j, spec in enumerate(config.filters):
-        task_filter = registry.create(
-            registry.FILTERS, spec.type, spec.params, f"{field}.filters.{j}"
-        )
-        task_filter.name = spec.type
-        filters.append(task_filter)
+    filters = [
+        registry.create(registry.FILTERS, spec.type, spec.params, f"{field}.filters.{j}")
+        for j, spec in enumerate(config.filters)
+    ]
     backend = registry.create(
         registry.BACKENDS, config.backend.type, config.backend.params, f"{field}.backend"
     )
-    backend.name = config.backend.type
-    return Controller(config.name, filters, backend, divergence_speed)
+    return Controller(
+        config.name,
+        filters,
+        backend,
+        divergence_speed,
+        filter_names=[spec.type for spec in config.filters],
+        backend_name=config.backend.type,
+    )
 
 
 def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field: str) -> None:
@@ -184,7 +187,7 @@ def start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> F
 
 
 def build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Trajectory:
-    """The experiment's trajectory from the registry, starting at ``x0``, named by its type."""
+    """The experiment's trajectory from the registry, starting at ``x0``."""
     trajectory: Trajectory = registry.create(
         registry.TRAJECTORIES,
         config.trajectory.type,
@@ -192,7 +195,6 @@ def build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Tr
         f"{field}.trajectory",
         start=x0,
     )
-    trajectory.name = config.trajectory.type
     return trajectory
 
 

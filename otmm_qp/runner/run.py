@@ -1,28 +1,25 @@
-"""Run a validated suite, writing results as each experiment finishes."""
+"""Run a validated suite, handing each run to a sink (e.g. the results folder) as it ends.
+
+The runner writes no files: ``run_suite(suite, out)`` calls ``out.write_run`` after each run
+and ``out.write_summaries`` after each change of the outcome, so dependencies point one way
+(:class:`otmm_qp.output.run_writer.ResultsWriter` is the sink that writes a run folder).
+"""
 
 from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import MetricSettings
-from otmm_qp.output.results import SUMMARY_CSV, SUMMARY_MD, ResultsDir
-from otmm_qp.output.summary import (
-    RunOutcome,
-    summary_row,
-    write_summary_csv,
-    write_summary_markdown,
-)
 from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import SkippedController
 from otmm_qp.runner.episode import RunRecord, run_episode
 from otmm_qp.runner.prepare import PreparedExperiment, prepare_experiment
-from otmm_qp.simulation.run_result import RunResult
 
 
 @dataclass
@@ -52,6 +49,24 @@ class SuiteResult:
 ExperimentHook = Callable[[PreparedExperiment, list[RunRecord], Path | None], None]
 
 
+class RunSink(Protocol):
+    """Where :func:`run_suite` puts each run as it ends (a results folder, for one).
+
+    Attributes:
+        path: The folder the sink writes (passed on to ``after_experiment`` hooks).
+    """
+
+    path: Path
+
+    def write_run(self, record: RunRecord, controllers: Sequence[str]) -> object:
+        """Store one finished run; ``controllers`` are its experiment's names, in order."""
+        ...
+
+    def write_summaries(self, outcome: SuiteResult) -> None:
+        """Store the summary of every run (and skip) so far."""
+        ...
+
+
 def prepare_suite(
     suite: SuiteConfig, source: str = "config", max_steps: int | None = None
 ) -> list[PreparedExperiment]:
@@ -63,17 +78,6 @@ def prepare_suite(
         max_steps: Cap on control steps per run (None: the config's ``max_steps``).
     """
     return [prepare_experiment(suite, i, source, max_steps) for i in range(len(suite.experiments))]
-
-
-def run_csv_path(out_dir: Path, result: RunResult, controllers: list[str]) -> Path:
-    """Where a run's time series goes (:meth:`ResultsDir.run_csv`).
-
-    Raises:
-        OutputPathError: The path would leave ``out_dir``.
-    """
-    return ResultsDir(out_dir).run_csv(
-        result.experiment, result.loop_mode, result.controller, controllers
-    )
 
 
 def run_experiment(
@@ -104,17 +108,18 @@ def _progress(stream: TextIO | None, text: str) -> None:
 
 def run_suite(
     suite: SuiteConfig,
-    out_dir: Path | None,
+    out: RunSink | None,
     source: str = "config",
     progress: TextIO | None = sys.stderr,
     after_experiment: ExperimentHook | None = None,
     prepared: list[PreparedExperiment] | None = None,
 ) -> SuiteResult:
-    """Run all experiments; write time series and summaries after each experiment.
+    """Run all experiments; hand each run and the summaries to ``out`` as they are done.
 
     Args:
         suite: Validated config.
-        out_dir: Results folder, or None to keep results in memory only.
+        out: Where the runs go (``ResultsWriter(folder)`` writes a results folder), or None
+            to keep results in memory only.
         source: Config name used in messages.
         progress: Stream for progress lines (None: silent).
         after_experiment: Called with each finished experiment (e.g. to draw figures).
@@ -122,17 +127,26 @@ def run_suite(
 
     Returns:
         All records; ``errors`` lists runs that stopped early (their steps are kept).
+
+    Raises:
+        TypeError: ``out`` is not a sink (e.g. a bare path), before any compute.
     """
+    if out is not None and not callable(getattr(out, "write_run", None)):
+        raise TypeError(
+            "run_suite: out must be a RunSink such as otmm_qp.output.run_writer.ResultsWriter"
+            f"(folder) or None, got {type(out).__name__}"
+        )
+    out_dir = out.path if out is not None else None
     experiments = prepared if prepared is not None else prepare_suite(suite, source)
     settings = MetricSettings(**suite.metrics.model_dump())
     outcome = SuiteResult(suite)
     total = sum(len(p.loop_modes) * len(p.controllers) for p in experiments)
     done = 0
     for experiment in experiments:
-        records = _run_and_write(experiment, settings, outcome, out_dir)
+        records = _run_and_write(experiment, settings, outcome, out)
         done += len(records)
         _progress(progress, f"[{done}/{total} runs] {experiment.config.name} done")
-        _record_stops_and_skips(outcome, experiment, records, out_dir, progress)
+        _record_stops_and_skips(outcome, experiment, records, out, progress)
         if after_experiment is not None:
             after_experiment(experiment, records, out_dir)
     if progress is not None and progress.isatty():
@@ -144,7 +158,7 @@ def _run_and_write(
     experiment: PreparedExperiment,
     settings: MetricSettings,
     outcome: SuiteResult,
-    out_dir: Path | None,
+    out: RunSink | None,
 ) -> list[RunRecord]:
     """Run one experiment, writing each run as it ends; add its compute time to ``outcome``."""
     names = [c.name for c in experiment.controllers]
@@ -156,10 +170,10 @@ def _run_and_write(
         nonlocal writing
         outcome.records.append(record)
         interrupt.check()
-        if out_dir is not None:
+        if out is not None:
             tic = time.perf_counter()
-            record.result.write_csv(run_csv_path(out_dir, record.result, names))
-            write_summaries(outcome, out_dir)
+            out.write_run(record, names)
+            out.write_summaries(outcome)
             writing += time.perf_counter() - tic
 
     tic = time.perf_counter()
@@ -172,7 +186,7 @@ def _record_stops_and_skips(
     outcome: SuiteResult,
     experiment: PreparedExperiment,
     records: list[RunRecord],
-    out_dir: Path | None,
+    out: RunSink | None,
     progress: TextIO | None,
 ) -> None:
     """Add the experiment's early stops and skipped controllers to ``outcome`` (and summaries)."""
@@ -183,35 +197,5 @@ def _record_stops_and_skips(
     for skip in experiment.skipped:
         outcome.skipped.append((experiment.config.name, skip))
         _progress(progress, f"{experiment.config.name}/{skip.name}: skipped ({skip.reason})")
-    if out_dir is not None and experiment.skipped:
-        write_summaries(outcome, out_dir)
-
-
-def write_summaries(outcome: SuiteResult, out_dir: Path) -> None:
-    """(Re)write ``summary.csv`` and ``summary.md`` from the records so far."""
-    rows = [summary_row(r.identity, r.metrics, r.result.error_message) for r in outcome.records]
-    rows += [
-        _skipped_row(experiment, mode, skip)
-        for experiment, skip in outcome.skipped
-        for mode in _loop_modes(outcome.suite, experiment)
-    ]
-    results = ResultsDir(out_dir)
-    write_summary_csv(rows, results.file(SUMMARY_CSV))
-    write_summary_markdown(rows, results.file(SUMMARY_MD), outcome.suite.name)
-
-
-def _loop_modes(suite: SuiteConfig, experiment: str) -> list[str]:
-    config = next(e for e in suite.experiments if e.name == experiment)
-    return list(config.loop_modes or suite.loop_modes)
-
-
-def _skipped_row(experiment: str, loop_mode: str, skip: SkippedController) -> dict[str, object]:
-    """A ``summary.csv`` row for a controller that was skipped: no metrics, the reason."""
-    identity = {
-        "experiment": experiment,
-        "loop_mode": loop_mode,
-        "controller": skip.name,
-        "filters": skip.filters,
-        "backend": skip.backend,
-    }
-    return summary_row(identity, {"steps": 0, "completed": False}, skip.reason, RunOutcome.SKIPPED)
+    if out is not None and experiment.skipped:
+        out.write_summaries(outcome)

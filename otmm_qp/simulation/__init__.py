@@ -1,7 +1,6 @@
 """Simulation loop, loop modes, episodes and run results."""
 
 from otmm_qp.simulation.episode import DEFAULT_MAX_STEPS, Episode, Loop
-from otmm_qp.simulation.integrator import Integrator
 from otmm_qp.simulation.loop_modes import LOOP_MODES, LoopMode, commanded_velocity
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.simulation.simulate import simulate, task_position
@@ -10,7 +9,6 @@ __all__ = [
     "DEFAULT_MAX_STEPS",
     "LOOP_MODES",
     "Episode",
-    "Integrator",
     "Loop",
     "LoopMode",
     "RunResult",

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -111,52 +109,3 @@ class RunResult:
         if self.task_kind != "pose":
             return None
         return np.asarray(np.linalg.norm(self.error[:, 3:], axis=1), dtype=float)
-
-    def write_csv(self, path: Path) -> None:
-        """Write the time series as CSV (one row per step, one named column per value)."""
-        path.parent.mkdir(parents=True, exist_ok=True)
-        d = self.position.shape[1]
-        axes = "xyz"[:d]
-        header = ["t"]
-        header += [f"q_{name}" for name in self.joint_names]
-        header += [f"qdot_{name}" for name in self.joint_names]
-        header += [f"{a}" for a in axes] + [f"{a}_desired" for a in axes]
-        header += [f"error_{i}" for i in range(self.error.shape[1])]
-        header += ["sigma_min", "p", "filter_active", "removed", "damping", "scale", "weak_speed"]
-        header += ["status", "step_time_us"]
-        plant_columns = self.plant_columns
-        if plant_columns:
-            header += [f"qdot_actual_{name}" for name in self.joint_names]
-            header += ["torque_ratio", "saturated", "conditioned"]
-        from otmm_qp.output.paths import atomic_open
-
-        with atomic_open(path, "w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(header)
-            for k in range(self.steps):
-                row: list[object] = [f"{self.t[k]:.6f}"]
-                row += [f"{v:.9g}" for v in self.q[k]]
-                row += [f"{v:.9g}" for v in self.qdot[k]]
-                row += [f"{v:.9g}" for v in self.position[k]]
-                row += [f"{v:.9g}" for v in self.position_desired[k]]
-                row += [f"{v:.9g}" for v in self.error[k]]
-                row += [
-                    f"{self.sigma_min[k]:.9g}",
-                    f"{self.p[k]:.6g}",
-                    int(bool(self.filter_active[k])),
-                    f"{self.removed[k]:.6g}",
-                    f"{self.damping[k]:.6g}",
-                    f"{self.scale[k]:.6g}",
-                    f"{self.weak_speed[k]:.6g}",
-                    self.status[k],
-                    f"{self.step_time[k] * 1e6:.2f}",
-                ]
-                if plant_columns:
-                    row += [f"{v:.9g}" for v in self.actual_qdot[k]]
-                    ratio = self.torque_ratio[k] if self.torque_ratio is not None else np.nan
-                    row += [
-                        f"{ratio:.6g}",
-                        int(bool(self.saturated is not None and self.saturated[k])),
-                        int(bool(self.conditioned is not None and self.conditioned[k])),
-                    ]
-                writer.writerow(row)

@@ -1,4 +1,4 @@
-r"""The closed simulation loop: state → command → filters → backend → integration stage.
+r"""The closed simulation loop: state → command → filters → backend → plant.
 
 .. math:: q_{k+1} = q_k \oplus \dot q_k\,dt,\qquad \dot q_{-1} = 0
 
@@ -10,6 +10,7 @@ and keeps its earlier steps, so the other runs of a suite or study go on.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -19,10 +20,10 @@ from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
 from otmm_qp.exceptions import InfeasibleProblem, OtmmError
 from otmm_qp.plants.chain import PlantChain
-from otmm_qp.plants.ideal import IntegratorPlant
+from otmm_qp.plants.ideal import IdealPlant
+from otmm_qp.plants.plant import PlantStep
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.simulation.episode import Episode
-from otmm_qp.simulation.integrator import Integrator
 from otmm_qp.simulation.recorder import RunRecorder, task_position
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
@@ -37,7 +38,11 @@ MESSAGE_LIMIT = 300
 
 
 class MalformedOutput(OtmmError):
-    """A backend (or filter) returned a ``q̇`` that is not a float array of shape ``(nv,)``."""
+    """A plugin returned an array that is not a finite float array of the expected shape.
+
+    A backend (or filter) a ``q̇`` that is not of shape ``(nv,)``, or a plant stage a next
+    state ``q`` not of shape ``(nq,)`` or an actual velocity not of shape ``(nv,)``.
+    """
 
 
 def failure_message(k: int, error: BaseException) -> str:
@@ -66,12 +71,45 @@ def _checked_qdot(output: ControllerOutput, nv: int) -> FloatArray:
     return qdot
 
 
+def _checked_step(step: PlantStep, nq: int, nv: int) -> PlantStep:
+    """``step`` if its ``q`` (nq,) and ``qdot`` (nv,) are finite float arrays; else raise.
+
+    One test and two dot products in the common case (~2 µs; NaN/inf make the sum
+    non-finite); the element-wise tests only word the message, so a finite state beyond
+    1e154 still passes (numpy then warns of the overflow in the dot product).
+
+    Raises:
+        MalformedOutput: Naming the field, its type and shape, or that it holds NaN/inf.
+    """
+    q, qdot = step.q, step.qdot
+    if (
+        type(q) is np.ndarray
+        and type(qdot) is np.ndarray
+        and q.shape == (nq,)
+        and qdot.shape == (nv,)
+        and q.dtype.kind == "f"
+        and qdot.dtype.kind == "f"
+        and math.isfinite(float(q.dot(q)) + float(qdot.dot(qdot)))
+    ):
+        return step
+    for field, value, size in (("q", q, nq), ("qdot", qdot, nv)):
+        if type(value) is not np.ndarray or value.shape != (size,) or value.dtype.kind != "f":
+            shape = getattr(value, "shape", None)
+            raise MalformedOutput(
+                f"the plant returned {field} of type {type(value).__name__}"
+                + (f" and shape {shape}" if shape is not None else "")
+                + f"; expected a float array of shape ({size},)"
+            )
+        if not np.all(np.isfinite(value)):
+            raise MalformedOutput(f"the plant returned {field} containing NaN or inf")
+    return step
+
+
 def simulate(
     episode: Episode,
     controller: Controller,
     *,
     on_step: StepObserver | None = None,
-    integrator: Integrator | None = None,
     plant: PlantChain | None = None,
     conditioning: Conditioning | None = None,
 ) -> RunResult:
@@ -79,18 +117,18 @@ def simulate(
 
     Each step k: :math:`x_k, J_k` and the SVD once (:class:`KinematicState`), the command
     ``ẋ_c`` from the episode's :class:`~otmm_qp.simulation.episode.Loop`, the controller's
-    ``q̇_k``, then ``integrator.advance(q_k, q̇_k)`` for :math:`q_{k+1}`.
+    ``q̇_k``, then ``plant.advance(q_k, q̇_k)`` for :math:`q_{k+1}` (the one place the next
+    state is made).
 
     Args:
         episode: What to run (checked when it was made).
         controller: Filters + backend; bound to the episode's robot and ``dt`` here.
         on_step: Observer called after each step (e.g. to keep the states a benchmark replays).
-        integrator: The integration stage (default: explicit Euler, :class:`Integrator`);
-            the body of the ideal plant when ``plant`` is None.
         plant: What happens between the command and the next state (:mod:`otmm_qp.plants`:
-            lag, delay, sensor noise, MuJoCo); None is the ideal plant (``integrator``), bit
-            for bit. The controller sees ``plant.measure(q)``; the results and metrics the
-            true ``q``.
+            lag, delay, sensor noise, MuJoCo, or any :class:`~otmm_qp.plants.plant.Plant`);
+            None is ``PlantChain([IdealPlant()])``, explicit Euler
+            :math:`q \oplus \dot q\,dt`. The controller sees ``plant.measure(q)``; the
+            results and metrics the true ``q``.
         conditioning: Command stages applied to the controller's ``q̇`` before the plant
             (:mod:`otmm_qp.conditioning`); None: none.
 
@@ -101,10 +139,7 @@ def simulate(
     """
     robot, dt = episode.robot, episode.dt
     controller.bind(robot, dt)
-    if plant is None:
-        plant = PlantChain(
-            [IntegratorPlant(integrator if integrator is not None else Integrator())]
-        )
+    plant = plant if plant is not None else PlantChain([IdealPlant()])
     conditioning = conditioning if conditioning is not None else Conditioning()
     if np.all(np.isfinite(episode.q0)):
         plant.reset(robot, episode.q0, dt)
@@ -135,7 +170,7 @@ def _run_steps(
         episode.dt,
         episode.task_weight,
     )
-    command_of, nv = episode.loop.command, robot.nv
+    command_of, nq, nv = episode.loop.command, robot.nq, robot.nv
     q = np.array(episode.q0)
     qdot_prev = np.zeros(nv)
     if not np.all(np.isfinite(q)):
@@ -164,7 +199,9 @@ def _run_steps(
             on_step(k, state, command, qdot_prev, output)
         try:
             step = plant.advance(q, qdot)
-        except (Exception, SystemExit) as error:  # a robot plugin's integrate
+            if step.stable:
+                step = _checked_step(step, nq, nv)
+        except (Exception, SystemExit) as error:  # a plant stage or a robot's integrate
             return failure_message(k + 1, error)
         recorder.record_plant(k, qdot, step, conditioning.active)
         if not step.stable:

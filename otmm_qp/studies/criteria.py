@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from otmm_qp.metrics.table import metric
+
 if TYPE_CHECKING:
     from otmm_qp.simulation.run_result import RunResult
     from otmm_qp.studies.schema import SuccessCriteria
@@ -47,8 +49,10 @@ FAILURE_CAUSES: tuple[str, ...] = (
     "chatter",
     "run_error",
 )
-#: Row columns added by :func:`speed_ratios`.
-RATIO_COLUMNS = ("max_speed_ratio", "max_jump_ratio")
+#: Row columns added by :func:`speed_ratios` (rows of :data:`~otmm_qp.metrics.table.STUDY_METRICS`).
+RATIO_COLUMNS: tuple[str, ...] = tuple(
+    metric(name).name for name in ("max_speed_ratio", "max_jump_ratio")
+)
 
 
 def speed_ratios(run: RunResult) -> dict[str, float]:
@@ -65,12 +69,12 @@ def speed_ratios(run: RunResult) -> dict[str, float]:
     qdot = np.asarray(run.qdot, dtype=float)
     limits = np.asarray(run.velocity_limits, dtype=float)
     if qdot.shape[0] < 2:
-        return {"max_speed_ratio": 0.0, "max_jump_ratio": 0.0}
+        return dict.fromkeys(RATIO_COLUMNS, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         speed = np.abs(qdot[1:]) / limits
         jump = np.abs(np.diff(qdot, axis=0)) / limits
     out = {}
-    for name, values in (("max_speed_ratio", speed), ("max_jump_ratio", jump)):
+    for name, values in zip(RATIO_COLUMNS, (speed, jump), strict=True):
         out[name] = float(np.max(np.nan_to_num(values, nan=math.inf)))
     return out
 

@@ -75,8 +75,8 @@ def run_config(config: StudyConfig, row: dict[str, Any]) -> dict[str, Any]:
         ConfigError: The row's robot, generator or controller is not in the study.
     """
     from otmm_qp.runner.build import check_reachable
+    from otmm_qp.scenarios.study_task import generate_task
     from otmm_qp.studies.spec import controller_record, expand_controllers
-    from otmm_qp.trajectories.study_task import generate_task
 
     robots = {r.name: r for r in config.robots}
     if row.get("robot") not in robots:

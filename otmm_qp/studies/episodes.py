@@ -23,7 +23,12 @@ from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.drilldown import episode_id
-from otmm_qp.studies.oracle import ORACLE, failed_columns, oracle_columns, oracle_fields
+from otmm_qp.studies.oracle import (
+    REFERENCE_INDEX,
+    failed_columns,
+    oracle_columns,
+    oracle_fields,
+)
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.spec import plant_name
 from otmm_qp.studies.task_ids import entry_label, task_id
@@ -130,7 +135,7 @@ def _base_row(
         "task_index": unit.task_index,
         "task_seed": unit.seed,
     }
-    if controller == ORACLE:
+    if controller == REFERENCE_INDEX:
         row.update(oracle_fields(config))
     else:
         spec = controllers[controller]
@@ -228,13 +233,13 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             row.update({f"task.{k}": v for k, v in task.descriptors.items()})
         if task is None or robot is None:
             row.update(status="error", error_message=task_error, success=False)
-            if controller == ORACLE:
+            if controller == REFERENCE_INDEX:
                 row.update(failed_columns(str(task_error)), status="error")
             result.rows.append(row)
             continue
         duration = _episode_duration(config, task)
         row["duration"] = duration
-        if controller == ORACLE:
+        if controller == REFERENCE_INDEX:
             result.rows.append(_oracle_row(config, row, robot, weight, task, duration))
             continue
         try:

@@ -18,10 +18,11 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.schema import StudyConfig
 
-#: Controller index and loop mode of the reference's episode.
-ORACLE = -1
+#: The controller index of a task's reference episode (no controller of the study has it).
+REFERENCE_INDEX = -1
 #: The reference rows' ``controller`` and ``backend`` names (the data contract with the report).
 REFERENCE_NAME = "oracle"
+#: The loop mode of the reference's episode.
 OFFLINE = "offline"
 
 

@@ -22,18 +22,27 @@ import io
 import math
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.exceptions import OtmmError
+from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_OBJECTIVES, STUDY_PAIRED, Metric
+from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
 from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.fronts import (
+    GroupFront,
+    counts_sentence,
+    detail_table,
+    group_fronts,
+    summary_table,
+)
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
@@ -52,21 +61,14 @@ from otmm_qp.studies.statistics import (
 )
 from otmm_qp.studies.storage import read_study_folder
 
-#: The reference rows' controller name (the data contract with the oracle).
-ORACLE = REFERENCE_NAME
 #: Oracle-relative error column computed for every controller row [m].
-RELATIVE_ERROR = "oracle_relative_error"
+RELATIVE_ERROR = metric_row("oracle_relative_error").name
 #: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
 RESAMPLES = 2000
-#: Metrics summarised by median + bootstrap interval: (column, label, unit).
-MEDIAN_METRICS: tuple[tuple[str, str, str], ...] = (
-    ("rms_error", "RMS error", "m"),
-    ("max_error", "max error", "m"),
-    ("max_joint_speed", "peak joint speed", "rad/s"),
-    ("max_jump", "max one-step jump", "rad/s"),
-)
-#: Metrics compared pairwise.
-PAIRED_METRICS = ("max_error", "max_joint_speed")
+#: Metrics summarised by median + bootstrap interval (rows of the metric table).
+MEDIAN_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_MEDIANS))
+#: Metrics compared pairwise after the headline accuracy (rows of the metric table).
+PAIRED_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_PAIRED))
 #: Bins of σ_min at closest approach (log-spaced edges).
 SIGMA_BINS = 6
 
@@ -76,7 +78,7 @@ class Rows:
     """Episode rows as Python dicts, with success and failure causes recomputed.
 
     ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
-    (select them with ``controller=ORACLE``).
+    (select them with ``controller=REFERENCE_NAME``).
     """
 
     rows: list[dict[str, Any]]
@@ -104,7 +106,7 @@ class Rows:
 
 
 def _is_oracle(row: dict[str, Any]) -> bool:
-    return row.get("controller") == ORACLE
+    return row.get("controller") == REFERENCE_NAME
 
 
 def _known(value: Any) -> bool:
@@ -196,9 +198,9 @@ def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
     return config, Rows(rows)
 
 
-def _median_metrics(rows: Rows) -> tuple[tuple[str, str, str], ...]:
+def _median_metrics(rows: Rows) -> tuple[Metric, ...]:
     if rows.has_reference:
-        return ((RELATIVE_ERROR, "oracle-relative max error", "m"), *MEDIAN_METRICS)
+        return (metric_row(RELATIVE_ERROR), *MEDIAN_METRICS)
     return MEDIAN_METRICS
 
 
@@ -212,19 +214,19 @@ def success_table(
     metrics = _median_metrics(rows)
     header = (
         "| controller | episodes | errors | success [95 % CI] | "
-        + " | ".join(f"median {label} [{unit}] (95 % CI)" for _, label, unit in metrics)
+        + " | ".join(f"median {m.heading} (95 % CI)" for m in metrics)
         + " |"
     )
     lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
     where = {"robot": robot} if robot else {}
-    for name in [*rows.controllers(), ORACLE]:
+    for name in [*rows.controllers(), REFERENCE_NAME]:
         selected = rows.select(controller=name, **where)
         if not selected:
             continue
         n = len(selected)
         errors = sum(1 for r in selected if r.get("status") == "error")
-        if name == ORACLE:
+        if name == REFERENCE_NAME:
             rate = "reference (not ranked)"
         else:
             wins = sum(1 for r in selected if r["success"])
@@ -232,8 +234,8 @@ def success_table(
             rates[name] = (wins / n, low, high)
             rate = f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
         cells = [name, str(n), str(errors), rate]
-        for metric, _, _ in metrics:
-            values = np.array([_value(r, metric) for r in selected])
+        for row in metrics:
+            values = np.array([_value(r, row.name) for r in selected])
             cells.append(_interval(bootstrap_interval(values, seed=0, resamples=RESAMPLES)))
         lines.append("| " + " | ".join(cells) + " |")
     return lines, rates
@@ -261,7 +263,7 @@ def generator_table(rows: Rows) -> list[str]:
 def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, Interval]:
     """``controller → median [interval]`` of ``metric`` on ``robot`` (the oracle included)."""
     out = {}
-    for name in [*rows.controllers(), ORACLE]:
+    for name in [*rows.controllers(), REFERENCE_NAME]:
         selected = rows.select(controller=name, robot=robot)
         if selected:
             values = np.array([_value(r, metric) for r in selected])
@@ -423,7 +425,7 @@ def accuracy_verdict(rows: Rows, robot: str) -> str:
     medians = {
         name: interval
         for name, interval in median_intervals(rows, robot, metric).items()
-        if name != ORACLE and math.isfinite(interval.value)
+        if name != REFERENCE_NAME and math.isfinite(interval.value)
     }
     if not medians:
         return f"- **Accuracy ({label})**: no finite values."
@@ -453,11 +455,48 @@ def _ranking_line(ranking: list[Ranked], what: str, test: str) -> str:
     )
 
 
-def render_markdown(config: StudyConfig, rows: Rows, figures: Sequence[str]) -> str:
-    """The Markdown report: overview, per robot verdicts → figure → causes → details."""
+def objectives(rows: Rows) -> tuple[str, ...]:
+    """The Pareto objectives: the headline accuracy, then :data:`STUDY_OBJECTIVES`."""
+    return (rows.accuracy_metric(), *STUDY_OBJECTIVES)
+
+
+def study_fronts(rows: Rows) -> list[GroupFront]:
+    """The Pareto front of every robot × generator group (see :mod:`otmm_qp.studies.fronts`)."""
+    return group_fronts(rows.rows, objectives(rows), task_key, resamples=RESAMPLES)
+
+
+def check_highlight(rows: Rows, highlight: str | None) -> None:
+    """Refuse a ``--highlight`` that names no controller of the study.
+
+    Raises:
+        ConfigError: ``highlight`` is not one of :meth:`Rows.controllers`.
+    """
+    if highlight is not None and highlight not in rows.controllers():
+        raise ConfigError(
+            "--highlight",
+            f"no controller {highlight!r:.60} in the study; have: {', '.join(rows.controllers())}",
+        )
+
+
+def render_markdown(
+    config: StudyConfig, rows: Rows, figures: Sequence[str], highlight: str | None = None
+) -> str:
+    """The Markdown report: overview, per robot verdicts → fronts → figure → causes → details.
+
+    Args:
+        config: The study record.
+        rows: Its rows (:func:`load_rows`).
+        figures: Relative paths of the figures written.
+        highlight: A controller marked as *ours* on every group's Pareto front, or None.
+    """
+    check_highlight(rows, highlight)
+    fronts = study_fronts(rows)
     out = _overview(config, rows)
+    out += _fronts_overview(fronts, highlight)
     for robot in rows.robots():
-        out += _robot_section(rows, robot, figures)
+        own = [f for f in fronts if f.robot == robot]
+        out += _robot_section(rows, robot, figures, own, highlight)
+        out += _front_details(own, highlight)
     lines, _ = success_table(rows, None)
     out += ["## All robots", "", *lines, ""]
     out += [
@@ -509,7 +548,8 @@ def _overview(config: StudyConfig, rows: Rows) -> list[str]:
     errors = sum(1 for r in competitors if r.get("status") == "error")
     tasks = len({_task(r) for r in rows.rows})
     reference = (
-        f"Each task's offline-optimal reference ({ORACLE} rows) is shown as a row and a point, "
+        f"Each task's offline-optimal reference ({REFERENCE_NAME} rows) is shown as a row and "
+        "a point, "
         "never ranked; accuracy is the oracle-relative error max_error − reference.max_error."
         if rows.has_reference
         else "No offline reference is stored: tasks are judged by the tolerances alone and "
@@ -537,9 +577,53 @@ def _overview(config: StudyConfig, rows: Rows) -> list[str]:
     ]
 
 
-def _robot_section(rows: Rows, robot: str, figures: Sequence[str]) -> list[str]:
-    """One robot: verdict, Pareto figure, failure causes, worst episodes, detailed tables."""
+def _fronts_overview(fronts: Sequence[GroupFront], highlight: str | None) -> list[str]:
+    """How the Pareto fronts are built, and the counts over every group."""
+    names = ", ".join(metric_row(m).heading for m in fronts[0].objectives) if fronts else ""
+    return [
+        "Pareto fronts, per robot × generator, over the online rows' medians of "
+        f"{names} (all minimised). Each row is compared on each objective with the other row "
+        "of lowest median by the paired Wilcoxon test on the same tasks; it *meets the "
+        f"criterion* when no comparison is worse and one is better (Holm p < {ALPHA:g}; Holm "
+        "over all its pairs, or over its tests against the best others only — both readings "
+        "shown).",
+        "",
+        counts_sentence(fronts, _ours(highlight)),
+        "",
+    ]
+
+
+def _ours(highlight: str | None) -> Callable[[str], bool]:
+    def ours(name: str) -> bool:
+        return name == highlight
+
+    return ours
+
+
+def _front_details(fronts: Sequence[GroupFront], highlight: str | None) -> list[str]:
+    """Per group of one robot: every row's medians, place on the front and paired tests."""
+    out: list[str] = []
+    for front in fronts:
+        out += [
+            f"### {front.robot} / {front.group}: medians, front and paired tests",
+            "",
+            *detail_table(front, _ours(highlight)),
+            "",
+        ]
+    return out
+
+
+def _robot_section(
+    rows: Rows,
+    robot: str,
+    figures: Sequence[str],
+    fronts: Sequence[GroupFront] = (),
+    highlight: str | None = None,
+) -> list[str]:
+    """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
     out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    if fronts:
+        out += [f"### Pareto fronts on {robot}", "", *summary_table(fronts, _ours(highlight)), ""]
     pareto = _pareto_path(robot)
     if pareto in figures:
         out += [f"![Pareto: {robot}]({pareto})", ""]
@@ -553,8 +637,8 @@ def _robot_section(rows: Rows, robot: str, figures: Sequence[str]) -> list[str]:
     ranking = paired_ranking({n: v[0] for n, v in rates.items()}, tests, higher_is_better=True)
     out += [_ranking_line(ranking, "success rate", "McNemar test"), ""]
     out += _mcnemar_table(tests, robot)
-    for metric in (rows.accuracy_metric(), "max_joint_speed"):
-        out += _paired_table(rows, robot, metric)
+    for paired in (rows.accuracy_metric(), *(m.name for m in PAIRED_METRICS)):
+        out += _paired_table(rows, robot, paired)
     for metric in ("max_error", "max_joint_speed"):
         out += _sigma_table(rows, robot, metric)
     return out
@@ -750,9 +834,9 @@ def _ecdf_figure(out: Path, rows: Rows, robot: str) -> str:
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(1, len(MEDIAN_METRICS), figsize=(4 * len(MEDIAN_METRICS), 3.4))
-    for ax, (metric, label, unit) in zip(axes, MEDIAN_METRICS, strict=True):
+    for ax, row in zip(axes, MEDIAN_METRICS, strict=True):
         for name in rows.controllers():
-            values = _positive_sorted(rows, robot, name, metric)
+            values = _positive_sorted(rows, robot, name, row.name)
             if values.size:
                 ax.step(
                     values,
@@ -761,7 +845,7 @@ def _ecdf_figure(out: Path, rows: Rows, robot: str) -> str:
                     label=name,
                 )
         ax.set_xscale("log")
-        ax.set_xlabel(f"{label} [{unit}]")
+        ax.set_xlabel(row.heading)
         ax.set_ylabel("fraction of episodes")
     axes[0].legend(fontsize=6)
     figure.suptitle(f"{robot}: ECDFs")
@@ -810,7 +894,7 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
         e, s = errors[name], speeds[name]
         if not (math.isfinite(e.value) and math.isfinite(s.value)):
             continue
-        if name == ORACLE:
+        if name == REFERENCE_NAME:
             ax.plot(
                 s.value,
                 0.0,
@@ -901,16 +985,22 @@ def _figure_html(out: Path, relative: str, caption: str) -> str:
     )
 
 
-def write_study_report(out: Path) -> tuple[Path, Path]:
+def write_study_report(out: Path, highlight: str | None = None) -> tuple[Path, Path]:
     """Write ``study_report.html`` and ``study_report.md`` (and figures) for a study dataset.
+
+    Args:
+        out: The study folder.
+        highlight: A controller placed as *ours* on each group's Pareto front, or None.
 
     Raises:
         OtmmError: ``out`` is not a study directory or holds no episodes.
+        ConfigError: ``highlight`` names no controller of the study (before any figure).
     """
     out = Path(out)
     config, rows = load_rows(out)
+    check_highlight(rows, highlight)
     figures = write_figures(out, rows)
-    markdown = render_markdown(config, rows, figures)
+    markdown = render_markdown(config, rows, figures, highlight)
     md_path = out / "study_report.md"
     html_path = out / "study_report.html"
     atomic_write_text(md_path, markdown)

@@ -174,7 +174,8 @@ class PlanLimits(Strict):
         max_tasks: Tasks drawn in all: robots × Σ generator ``count``.
         max_controllers: Controllers after grid expansion (Σ over controllers of the product
             of the grid axis lengths).
-        max_episodes: Episodes: tasks × controllers × loop modes.
+        max_episodes: Episodes: tasks × (controllers × loop modes + 1 reference when
+            ``reference.enabled``).
         max_generator_budget: Largest ``attempts``, ``restarts`` or ``iterations`` of a
             generator.
     """

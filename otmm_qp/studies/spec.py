@@ -22,7 +22,7 @@ from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
-from otmm_qp.studies.oracle import OFFLINE, ORACLE, REFERENCE_NAME
+from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.studies.task_ids import check_entries, seed_name
 
@@ -57,6 +57,9 @@ def _grid_size(spec: StudyController) -> int:
 def check_plan_size(config: StudyConfig, source: str = "study") -> None:
     """Refuse a study larger than its stated ``limits`` before anything is allocated.
 
+    Episodes counted: ``tasks × (controllers × loop modes + r)``, ``r = 1`` when
+    ``reference.enabled`` (each task's offline reference is an episode too), else 0.
+
     Raises:
         ConfigError: Naming the bound, the study's size and how to raise the bound.
     """
@@ -77,13 +80,16 @@ def check_plan_size(config: StudyConfig, source: str = "study") -> None:
             f"the grids expand to {controllers:.3g} controllers, more than "
             f"limits.max_controllers = {limits.max_controllers}; " + hint.format("max_controllers"),
         )
-    episodes = tasks * controllers * len(config.loop_modes)
+    references = 1 if config.reference.enabled else 0  # one reference episode per task
+    episodes = tasks * (controllers * len(config.loop_modes) + references)
     if episodes > limits.max_episodes:
+        per_task = f"{controllers} controllers × {len(config.loop_modes)} loop modes"
+        if references:
+            per_task = f"({per_task} + 1 reference)"
         raise ConfigError(
             f"{source}: controllers",
-            f"{tasks} tasks × {controllers} controllers × {len(config.loop_modes)} loop modes = "
-            f"{episodes:.3g} episodes exceeds limits.max_episodes = {limits.max_episodes}; "
-            + hint.format("max_episodes"),
+            f"{tasks} tasks × {per_task} = {episodes:.3g} episodes exceeds "
+            f"limits.max_episodes = {limits.max_episodes}; " + hint.format("max_episodes"),
         )
     for j, gen in enumerate(config.generators):
         for name in GENERATOR_BUDGETS:
@@ -226,7 +232,7 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
 class Episode:
     """One episode: indices into the study's robots, generators, controllers and loop modes.
 
-    The task's offline-optimal reference is an episode too, with ``controller = ORACLE``
+    The task's offline-optimal reference is an episode too, with ``controller = REFERENCE_INDEX``
     (−1) and ``loop_mode = "offline"``.
     """
 
@@ -440,7 +446,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
                 seed = task_seed(config.seed, robot.name, seed_name(config, g), index)
                 if config.reference.enabled:  # once per task, before its controllers
                     key = oracle_key(config, r, g, index, seed)
-                    episodes.append(Episode(key, r, g, index, seed, ORACLE, OFFLINE))
+                    episodes.append(Episode(key, r, g, index, seed, REFERENCE_INDEX, OFFLINE))
                 for c, record in enumerate(records):
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)

@@ -236,6 +236,51 @@ def _finite_pairs(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]
     return a[keep], b[keep]
 
 
+def wilcoxon_p(a: FloatArray, b: FloatArray) -> float:
+    """Two-sided Wilcoxon signed-rank p of ``a − b`` over the finite pairs, shape ``(n,)`` each.
+
+    1 when every difference is zero, NaN without a finite pair (the p of :func:`paired_test`).
+    """
+    a, b = _finite_pairs(a, b)
+    if a.size == 0:
+        return math.nan
+    difference = a - b
+    if not np.any(difference != 0.0):
+        return 1.0
+    if difference.size <= EXACT_PAIRS:
+        return exact_signed_rank_p(difference)
+    return float(stats.wilcoxon(difference, zero_method="wilcox").pvalue)
+
+
+#: Up to this many pairs (zeros included) the signed-rank p is the exact enumeration of
+#: every sign pattern — what :func:`scipy.stats.wilcoxon` does there too (its exact
+#: distribution without ties, a deterministic permutation test with ties or zeros), without
+#: its per-pattern Python loop.
+EXACT_PAIRS = 13
+
+
+def exact_signed_rank_p(differences: FloatArray) -> float:
+    r"""Two-sided exact p of the signed-rank statistic over all :math:`2^m` sign patterns.
+
+    :math:`W^+ = \sum_{d_i > 0} r_i` with :math:`r` the average ranks of the *m* non-zero
+    :math:`|d_i|`; :math:`p = \min(1, 2\min(P(T \le W^+), P(T \ge W^+)))` for
+    :math:`T = \sum_i s_i r_i`, :math:`s \in \{0, 1\}^m` uniform, with scipy's relative
+    tolerance :math:`100\,\varepsilon\,W^+` on the comparisons. Shape ``(n,)``, ``m ≤ 20``.
+    """
+    d = np.asarray(differences, dtype=float)
+    d = d[d != 0.0]
+    if d.size == 0:
+        return 1.0
+    ranks = stats.rankdata(np.abs(d))
+    observed = float(ranks[d > 0].sum())
+    patterns = (np.arange(2**d.size)[:, None] >> np.arange(d.size)) & 1
+    null = patterns @ ranks
+    gamma = abs(np.finfo(float).eps * 100 * observed)
+    less = np.count_nonzero(null <= observed + gamma) / null.size
+    greater = np.count_nonzero(null >= observed - gamma) / null.size
+    return float(min(1.0, 2.0 * min(less, greater)))
+
+
 def paired_test(
     a_name: str, b_name: str, a: FloatArray, b: FloatArray, seed: int = 0, resamples: int = 2000
 ) -> PairedResult:
@@ -247,10 +292,7 @@ def paired_test(
     difference = a - b
     lower = int(np.count_nonzero(difference < 0))
     higher = int(np.count_nonzero(difference > 0))
-    if lower + higher == 0:
-        p = 1.0
-    else:
-        p = float(stats.wilcoxon(difference, zero_method="wilcox").pvalue)
+    p = wilcoxon_p(a, b)
     w_minus, w_plus = signed_rank_sums(difference)
     return PairedResult(
         a_name,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+from typing import ClassVar
 
 from otmm_qp.robots.robot import FloatArray
 
@@ -19,7 +20,8 @@ class Trajectory(abc.ABC):
             experiment gives none.
     """
 
-    name: str = "trajectory"
+    #: The class's own name (e.g. ``"circle"``), a class constant never assigned on an instance.
+    name: ClassVar[str] = "trajectory"
     duration: float
 
     @abc.abstractmethod

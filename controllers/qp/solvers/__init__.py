@@ -2,18 +2,18 @@ r"""QP solver sessions, one file per solver, dispatched by name through :data:`S
 
 ``daqp``, ``proxsuite`` and ``osqp`` are persistent sessions (set up once, updated in place,
 warm started); every other installed qpsolvers backend (``quadprog``, ``clarabel``,
-``proxqp``, ...) runs through :class:`QpsolversSession` (the stateless reference path). The
-names ``direct_daqp``, ``direct_proxsuite``, ``direct_osqp`` of earlier versions are aliases.
+``proxqp``, ...) runs through :class:`QpsolversSession` (the stateless reference path).
+A solver name is a session name or an installed qpsolvers backend, nothing else.
 """
 
 from __future__ import annotations
 
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import qpsolvers
 
-from otmm_qp.exceptions import SolverNotFound
+from otmm_qp.exceptions import OtmmError, ParameterError, SolverNotFound
 
 from .daqp_session import DaqpSession
 from .osqp_session import OsqpSession
@@ -36,20 +36,30 @@ for _name, _module, _session in (
     if importlib.util.find_spec(_module) is not None:
         SESSIONS[_name] = _session
 
-#: Names of earlier versions, and what they mean now.
-ALIASES = {"direct_daqp": "daqp", "direct_osqp": "osqp", "direct_proxsuite": "proxsuite"}
+#: Solver names that were renamed, for the one-line refusal only (never resolved).
+RENAMED = {"direct_daqp": "daqp", "direct_osqp": "osqp", "direct_proxsuite": "proxsuite"}
 
 
 def available_solvers() -> list[str]:
-    """Every accepted solver name: sessions, their aliases, and installed qpsolvers backends."""
-    names = set(SESSIONS) | set(qpsolvers.available_solvers)
-    names |= {alias for alias, target in ALIASES.items() if target in SESSIONS}
-    return sorted(names)
+    """Every accepted solver name: the sessions and the installed qpsolvers backends."""
+    return sorted(set(SESSIONS) | set(qpsolvers.available_solvers))
 
 
-def canonical_name(solver: str) -> str:
-    """``solver`` with an alias resolved (``direct_daqp`` → ``daqp``)."""
-    return ALIASES.get(solver, solver)
+def unknown_solver(solver: str, installed: Sequence[str]) -> OtmmError:
+    """The error for a solver name not in ``installed``.
+
+    Returns:
+        ``ParameterError`` naming the new name of a renamed one (``solver: 'direct_daqp' is now
+        called 'daqp' (the persistent daqp session); write solver: daqp``), else
+        ``SolverNotFound`` (``unknown QP solver 'x'; installed: ...``).
+    """
+    new = RENAMED.get(solver)
+    if new is not None:
+        return ParameterError(
+            "solver",
+            f"{solver!r} is now called {new!r} (the persistent {new} session); write solver: {new}",
+        )
+    return SolverNotFound(solver, installed)
 
 
 def make_session(solver: str) -> QpSession:
@@ -58,18 +68,17 @@ def make_session(solver: str) -> QpSession:
     Raises:
         SolverNotFound: ``solver`` is neither a session nor an installed qpsolvers backend.
     """
-    name = canonical_name(solver)
-    factory = SESSIONS.get(name)
+    factory = SESSIONS.get(solver)
     if factory is not None:
         return factory()
-    if name in qpsolvers.available_solvers:
-        return QpsolversSession(name)
-    raise SolverNotFound(solver, available_solvers())
+    if solver in qpsolvers.available_solvers:
+        return QpsolversSession(solver)
+    raise unknown_solver(solver, available_solvers())
 
 
 __all__ = [
-    "ALIASES",
     "BIG",
+    "RENAMED",
     "SESSIONS",
     "SOLVER_OPTIONS",
     "DaqpSession",
@@ -80,7 +89,7 @@ __all__ = [
     "QpsolversSession",
     "Solution",
     "available_solvers",
-    "canonical_name",
     "make_session",
     "solve_with_qpsolvers",
+    "unknown_solver",
 ]

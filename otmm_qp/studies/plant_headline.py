@@ -11,7 +11,7 @@ From the episode rows of a study with a ``plants`` axis (controllers named
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
 
-Run as ``python -m otmm_qp.plants.headline RESULTS_DIR`` (prints Markdown).
+Run as ``python -m otmm_qp.studies.plant_headline RESULTS_DIR`` (prints Markdown).
 """
 
 from __future__ import annotations
@@ -118,10 +118,10 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m otmm_qp.plants.headline RESULTS_DIR``: print the headline; 2 on bad input."""
+    """``python -m otmm_qp.studies.plant_headline DIR``: print the headline; 2 on bad input."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
-        print("usage: python -m otmm_qp.plants.headline RESULTS_DIR", file=sys.stderr)
+        print("usage: python -m otmm_qp.studies.plant_headline RESULTS_DIR", file=sys.stderr)
         return 2
     table = read_episodes(Path(args[0]), COLUMNS) if Path(args[0]).is_dir() else None
     if table is None or "plant" not in table.column_names:

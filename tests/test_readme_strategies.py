@@ -1,0 +1,77 @@
+"""The README's "Which strategy for which task" table is what the shipped commands print.
+
+Runs the README's two commands on the shipped reduced study (``strategies_readme.yaml``) and
+checks the table line by line, and the claims of the sentences around it against the fronts.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from otmm_qp.cli import main
+from otmm_qp.studies.group_verdict import kind_fronts, kinds_table
+from otmm_qp.studies.group_verdict import main as group_verdict
+from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.spec import load_study, plan_study
+
+ROOT = Path(__file__).resolve().parent.parent
+STUDIES = ROOT / "configs" / "studies"
+
+
+def _readme_section() -> str:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = text.index("### Which strategy for which task")
+    return text[start : text.index("\n## ", start)]
+
+
+def _readme_table(section: str) -> list[str]:
+    start = section.index("| task kind (tasks) |")
+    return section[start : section.index("\n\n", start)].splitlines()
+
+
+def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
+    section = _readme_section()
+    readme_file = "configs/studies/strategies_readme.yaml"
+    assert f"otmm-qp study {readme_file} --out results/strategies-readme --highlight sigma_lm" in (
+        section
+    )
+    assert "group_verdict results/strategies-readme --ours sigma_lm --kinds" in section
+    out = tmp_path / "strategies-readme"
+    command = ["study", str(ROOT / readme_file), "--out", str(out), "--highlight", "sigma_lm"]
+    assert main([*command, "--workers", "1", "--quiet"]) == 0, capsys.readouterr().err
+    assert "**sigma_lm** (ours)" in (out / "study_report.md").read_text(encoding="utf-8")
+    printed = tmp_path / "kinds.md"
+    assert group_verdict([str(out), "--ours", "sigma_lm", "--kinds", "--out", str(printed)]) == 0
+    table = printed.read_text(encoding="utf-8").strip().split("\n\n", 1)[1].splitlines()
+    assert _readme_table(section) == table
+
+    # The sentences: sizes, and what the fronts say.
+    config = load_study(STUDIES / "strategies_readme.yaml")
+    tasks = len({(e.robot, e.generator, e.task_index) for e in plan_study(config).episodes})
+    flat = " ".join(section.split())
+    assert f"({tasks} tasks × {len(config.controllers)} rows" in flat
+    counts = {g.type: g.count for g in config.generators}
+    assert counts["held_target"] == counts["random_reachable"] == 4
+    assert "(4 tasks per arm for held and random targets)" in flat
+    for name, size in (("strategies_arms.yaml", 192), ("strategies_planar.yaml", 136)):
+        plan = plan_study(load_study(STUDIES / name))
+        assert len({(e.robot, e.generator, e.task_index) for e in plan.episodes}) == size
+    fronts = {g.group: g for g in kind_fronts(load_rows(out)[1])}
+    assert kinds_table(list(fronts.values()), "sigma_lm") == table
+    assert all(g.best_on_all is None for g in fronts.values())  # none on top of all three
+    assert all("sigma_lm" not in (g.best_on(0), g.best_on(1)) for g in fronts.values())
+    assert all(g.best_on(1) == "dls_error" for g in fronts.values())  # the calm end
+    assert fronts["singular crossings"].best_on(0) == "OTMM-directional+pinv"
+    assert fronts["reachable random"].best_on(0) == "sns"
+    for kind in ("beyond-reach motion", "limit-bound motion", "held targets"):
+        g = fronts[kind]
+        accurate, calm = g.row(str(g.best_on(0))), g.row("dls_error")
+        assert accurate is not None and calm is not None
+        assert accurate.medians[1] >= 3.0 * calm.medians[1]  # "several times its peak speed"
+    from otmm_qp.robots.pinocchio_arm import PinocchioArm
+
+    limits = PinocchioArm(name="panda", task="pose").velocity_limits
+    assert (round(float(np.min(limits)), 1), round(float(np.max(limits)), 1)) == (2.2, 2.6)
+    assert "are 2.2–2.6 rad/s" in flat

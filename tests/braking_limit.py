@@ -11,14 +11,14 @@ limit, joint ``i`` must still be able to stop before it with deceleration ``a_ma
 
 from __future__ import annotations
 
-import math
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import Box, Limit
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 class BrakingDistanceLimit(Limit):
@@ -33,10 +33,12 @@ class BrakingDistanceLimit(Limit):
 
     name: ClassVar[str] = "braking_distance"
     priority: ClassVar[int] = 1  # given up with the position limit, before acceleration
+    parameter_constraints: ClassVar[Constraints] = {
+        "a_max": Interval(Real, 0, None, closed="neither", unit="rad/s²"),
+    }
 
     def __init__(self, a_max: float = 10.0) -> None:
-        if not (isinstance(a_max, int | float) and math.isfinite(a_max) and a_max > 0.0):
-            raise ParameterError("a_max", f"must be a finite number > 0 [rad/s²], got {a_max!r}")
+        check_params(self, locals())
         self.a_max = float(a_max)
 
     def bind(self, robot: Robot, dt: float) -> None:

@@ -55,6 +55,7 @@ __all__ = [
     "ParameterInfo",
     "RegisteredName",
     "check_params",
+    "declaration_problems",
     "constraints_of",
     "declare",
     "describe",
@@ -439,3 +440,32 @@ def parameters(owner: object, reserved: Sequence[str] = ()) -> list[ParameterInf
         allowed = describe(declared[p.name]) if p.name in declared else "not declared"
         rows.append(ParameterInfo(p.name, default, allowed))
     return rows
+
+
+def declaration_problems(owner: object, reserved: Sequence[str] = ()) -> list[str]:
+    """What is wrong with a plugin's declarations (empty: nothing), for its own tests.
+
+    The declared names must be exactly the constructor's parameters (less ``reserved``), and
+    every default must satisfy its declaration.
+
+    Args:
+        owner: The plugin class or function.
+        reserved: Parameters the framework passes itself (a p-function's ``s, sigma_s``).
+
+    Returns:
+        One line per problem, e.g. ``declared but not a parameter: gian``.
+    """
+    declared = constraints_of(owner)
+    if declared is None:
+        return ["no parameter_constraints declared"]
+    accepted = signature_parameters(owner, reserved)
+    names = [p.name for p in accepted]
+    problems = [f"declared but not a parameter: {n}" for n in declared if n not in names]
+    problems += [f"parameter not declared: {n}" for n in names if n not in declared]
+    for p in accepted:
+        if p.name in declared and p.default is not inspect.Parameter.empty:
+            try:
+                check_params(owner, {p.name: p.default})
+            except ParameterError as error:
+                problems.append(f"default refused: {error}")
+    return problems

@@ -27,6 +27,7 @@ from otmm_qp.validation import (
     OneOf,
     check_params,
     constraints_of,
+    declaration_problems,
     describe,
     parameters,
     signature_parameters,
@@ -284,24 +285,39 @@ def test_every_group_has_built_ins() -> None:
 
 @pytest.mark.parametrize(("group", "name"), BUILT_INS)
 def test_declarations_are_exactly_the_constructor_parameters(group: str, name: str) -> None:
+    """Declared names == constructor parameters, and every default satisfies its declaration."""
     plugin = registry.load(group, name)
+    reserved = RESERVED.get(group, ())
+    assert declaration_problems(plugin, reserved) == []
     declared = constraints_of(plugin)
-    assert declared is not None, f"{name} declares no parameter_constraints"
-    accepted = [p.name for p in signature_parameters(plugin, RESERVED.get(group, ()))]
+    assert declared is not None
+    accepted = [p.name for p in signature_parameters(plugin, reserved)]
     assert sorted(declared) == sorted(accepted)
-
-
-@pytest.mark.parametrize(("group", "name"), BUILT_INS)
-def test_defaults_satisfy_the_declarations(group: str, name: str) -> None:
-    plugin = registry.load(group, name)
     defaults = {
         p.name: p.default
-        for p in signature_parameters(plugin, RESERVED.get(group, ()))
+        for p in signature_parameters(plugin, reserved)
         if p.default is not inspect.Parameter.empty
     }
     check_params(plugin, defaults)  # raises if a default were refused
-    listed = parameters(plugin, RESERVED.get(group, ()))
-    assert all(row.allowed != "not declared" for row in listed)
+    assert all(row.allowed != "not declared" for row in parameters(plugin, reserved))
+
+
+def test_declaration_problems_finds_each_kind() -> None:
+    class Wrong:
+        parameter_constraints: ClassVar[Constraints] = {
+            "gain": Interval(Real, 0, None, closed="neither"),
+            "gian": Interval(Real, 0, None, closed="neither"),
+        }
+
+        def __init__(self, gain: float = 0.0, mode: str = "a") -> None:
+            self.gain = gain
+
+    assert declaration_problems(Wrong) == [
+        "declared but not a parameter: gian",
+        "parameter not declared: mode",
+        "default refused: gain: must be a finite number > 0, got 0.0",
+    ]
+    assert declaration_problems(UndeclaredBackend) == ["no parameter_constraints declared"]
 
 
 def test_per_step_functions_do_not_validate() -> None:
@@ -464,6 +480,7 @@ def test_the_plugins_md_example_runs() -> None:
     namespace: dict[str, Any] = {}
     exec(compile(block.group(1), "docs/plugins.md", "exec"), namespace)  # noqa: S102 - our docs
     backend_class = namespace["SpeedCappedBackend"]
+    assert declaration_problems(backend_class) == []
     assert backend_class(max_speed=1.0).max_speed == 1.0
     with pytest.raises(ParameterError, match=r"^max_speed: must be a finite number > 0 \[rad/s\]"):
         backend_class(max_speed=float("nan"))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import inspect
 import math
 import re
+import sys
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any, ClassVar
@@ -503,3 +504,17 @@ def test_an_instance_checks_at_construction() -> None:
     assert isinstance(_Declares(), _Declares)
     with pytest.raises(ParameterError, match=r"^x: must be in \[0, 1\], got 1\.5$"):
         _Declares(1.5)
+
+
+def test_the_example_plugin_declares_its_parameters(monkeypatch: pytest.MonkeyPatch) -> None:
+    example = Path(__file__).parents[1] / "examples" / "otmm_qp_example_plugin" / "src"
+    monkeypatch.syspath_prepend(str(example))
+    from otmm_qp_example_plugin.clipped_pinv import ClippedPseudoInverseBackend
+
+    try:
+        assert declaration_problems(ClippedPseudoInverseBackend) == []
+        with pytest.raises(ParameterError, match=r"^max_speed: must be a finite number > 0"):
+            ClippedPseudoInverseBackend(max_speed=-1.0)
+    finally:  # leave no import behind for the tests that install the plugin themselves
+        for name in [m for m in sys.modules if m.startswith("otmm_qp_example_plugin")]:
+            del sys.modules[name]

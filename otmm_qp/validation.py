@@ -52,14 +52,16 @@ __all__ = [
     "InstanceOf",
     "Interval",
     "OneOf",
+    "REQUIRED",
     "ParameterInfo",
     "RegisteredName",
     "check_params",
-    "declaration_problems",
     "constraints_of",
+    "declaration_problems",
     "declare",
     "describe",
     "parameters",
+    "signature_parameters",
 ]
 
 Closed = Literal["left", "right", "both", "neither"]

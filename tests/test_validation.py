@@ -442,10 +442,12 @@ def test_list_params_shows_constraints_and_defaults(capsys: pytest.CaptureFixtur
     assert main(["list", "--params", "qp", "otmm", "bounded", "lag"]) == 0
     text = capsys.readouterr().out
     assert "  qp " in text and "  otmm " in text and "  dls " not in text
+    assert "robots:" not in text  # only the groups holding the named plugins
     assert "      infeasible_policy = 'raise': one of 'raise', 'hold', 'dls'" in text
     assert "      sigma_s = 0.05: a finite number > 0" in text
     assert "      max_gain = None: a finite number > 0 or None" in text
     assert "      tau = (required): a finite number > 0 [s]" in text
+    assert "      limit_gain (refused): removed (limits have one form): write limits: [" in text
 
 
 def test_default_list_is_unchanged_in_shape(capsys: pytest.CaptureFixture[str]) -> None:

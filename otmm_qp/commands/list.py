@@ -3,8 +3,9 @@
 The default listing reads only the entry points (no plugin is imported, so it stays fast).
 ``--params`` loads the plugins and prints, under each, its parameters with their defaults and
 declared constraints (:func:`otmm_qp.validation.parameters`); a third-party plugin that declares
-none lists its signature with ``not declared``. ``--params NAME ...`` restricts it to the
-plugins of those names.
+none lists its signature with ``not declared``. Renamed or removed parameters follow, marked
+``(refused)`` with what to write instead. ``--params NAME ...`` restricts it to the plugins of
+those names.
 """
 
 from __future__ import annotations
@@ -41,21 +42,25 @@ def parameter_lines(group: str, name: str) -> list[str]:
     except OtmmError as error:
         return [f"      (cannot be loaded: {error})"]
     rows = parameters(plugin, RESERVED.get(group, ()))
-    if not rows:
-        return ["      (no parameters)"]
-    return [f"      {row.name} = {row.default}: {row.allowed}" for row in rows]
+    lines = [f"      {row.name} = {row.default}: {row.allowed}" for row in rows]
+    removed = getattr(plugin, "removed_parameters", None) or {}
+    lines += [f"      {name} (refused): {why}" for name, why in removed.items()]
+    return lines or ["      (no parameters)"]
 
 
 def run(args: argparse.Namespace) -> int:
     """Print every registered plugin, by group (with ``--params``, their parameters)."""
     wanted: list[str] | None = args.params
     for group in registry.GROUPS:
-        print(f"{group.rsplit('.', 1)[-1]}:")
+        lines = []
         for name, spec in registry.specs(group).items():
             if wanted and name not in wanted:
                 continue
-            print(f"  {name:<24} {spec.value}  [{spec.distribution}]")
+            lines.append(f"  {name:<24} {spec.value}  [{spec.distribution}]")
             if wanted is not None:
-                for line in parameter_lines(group, name):
-                    print(line)
+                lines += parameter_lines(group, name)
+        if lines or not wanted:  # named plugins: only the groups that hold them
+            print(f"{group.rsplit('.', 1)[-1]}:")
+            for line in lines:
+                print(line)
     return 0

@@ -136,6 +136,19 @@ def test_plot_comparison_writes_png(runs: list[RunResult], tmp_path: Path) -> No
     png_size(single)
 
 
+def test_plot_comparison_with_a_run_that_never_moves(
+    runs: list[RunResult], tmp_path: Path
+) -> None:
+    """A run whose q̇ is 0 throughout (a backend stuck at a singular start) beside runs that
+    move: the speed axis is symlog from the moving runs' peaks, the note's ratio as well (it
+    once divided by the 0 peak: ZeroDivisionError on configs/strategies/paper.yaml)."""
+    still = dataclasses.replace(runs[0], controller="stuck", qdot=np.zeros_like(runs[0].qdot))
+    spike = next(r for r in runs if r.controller == "RMRC spike")
+    path = tmp_path / "comparison.png"
+    plot_comparison([still, runs[0], spike], path, "T · clik", 0.05)
+    png_size(path)
+
+
 def test_figure_hook_layout(runs: list[RunResult], tmp_path: Path) -> None:
     prepared: Any = SimpleNamespace(config=SimpleNamespace(name="T"), loop_modes=["clik"])
     records = [RunRecord(r, None) for r in (runs[1], runs[2])]  # type: ignore[arg-type]

@@ -669,7 +669,8 @@ def _comparison_notes(
     """The line under the legend: which axes are logarithmic, what the dashed lines mean."""
     notes = []
     if scales.band is not None:
-        ratio = max(scales.peaks) / min(scales.peaks)
+        moving = [p for p in scales.peaks if np.isfinite(p) and p > 0.0]  # as _symlog_band
+        ratio = max(moving) / min(moving)
         notes.append(f"q̇ on symlog axis: controller peaks differ by {ratio:.0f}×")
     if scales.error_log:
         notes.append("‖e‖ on log axis")

@@ -136,9 +136,7 @@ def test_plot_comparison_writes_png(runs: list[RunResult], tmp_path: Path) -> No
     png_size(single)
 
 
-def test_plot_comparison_with_a_run_that_never_moves(
-    runs: list[RunResult], tmp_path: Path
-) -> None:
+def test_plot_comparison_with_a_run_that_never_moves(runs: list[RunResult], tmp_path: Path) -> None:
     """A run whose q̇ is 0 throughout (a backend stuck at a singular start) beside runs that
     move: the speed axis is symlog from the moving runs' peaks, the note's ratio as well (it
     once divided by the 0 peak: ZeroDivisionError on configs/strategies/paper.yaml)."""

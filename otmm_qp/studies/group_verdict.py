@@ -19,6 +19,7 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.metrics.table import metric
@@ -49,9 +50,12 @@ GENERATOR_KINDS: tuple[tuple[str, str], ...] = (
 )
 
 
-def kind_fronts(rows: Rows) -> list[GroupFront]:
-    """The front of each kind of task, pooled over the study's robots (see the docstring)."""
-    pooled: dict[str, list[dict[str, object]]] = {}
+def kind_rows(rows: Rows) -> dict[str, list[dict[str, Any]]]:
+    """The online rows of each kind of task, pooled over the study's robots.
+
+    A task can be in several kinds (see the module docstring).
+    """
+    pooled: dict[str, list[dict[str, Any]]] = {}
     for robot in rows.robots():
         for group in task_groups(rows, robot):
             pooled.setdefault(group.label, []).extend(group.rows)
@@ -59,6 +63,12 @@ def kind_fronts(rows: Rows) -> list[GroupFront]:
         pooled[label] = [
             r for r in rows.select(generator=generator) if r["controller"] != REFERENCE_NAME
         ]
+    return pooled
+
+
+def kind_fronts(rows: Rows) -> list[GroupFront]:
+    """The front of each kind of task, pooled over the study's robots (see the docstring)."""
+    pooled = kind_rows(rows)
     robots = ", ".join(rows.robots())
     return [
         front_of(robots, label, selected, objectives(rows), task_key, RESAMPLES)

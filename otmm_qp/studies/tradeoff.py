@@ -309,19 +309,23 @@ def study_tradeoff(
     Groups whose calm and accurate rows are the same row are skipped (a row on top of both).
 
     Raises:
-        ConfigError: ``group_by`` not in :data:`GROUPINGS`, an unknown row, a study without
-            reference rows, ``tasks`` < 1, or no task to compare in any group.
+        ConfigError: ``group_by`` not in :data:`GROUPINGS`, an unknown row, the same row
+            named calm and accurate, a study without reference rows, ``tasks`` < 1, or no
+            task to compare in any group.
     """
     if group_by not in GROUPINGS:
         raise ConfigError("--group-by", f"{group_by!r:.40} is not one of {', '.join(GROUPINGS)}")
     check_row(rows, calm, "--calm")
     check_row(rows, accurate, "--accurate")
+    if calm is not None and calm == accurate:
+        raise ConfigError("--accurate", f"{accurate!r:.60} is the --calm row too; name another")
     if not rows.has_reference:
         raise ConfigError("study", "no offline reference rows stored (reference.enabled: true)")
     if tasks is not None and tasks < 1:
         raise ConfigError("--tasks", f"must be an integer >= 1, got {tasks}")
     solver = _Solver(config, {})
     out = []
+    skipped = 0
     for robot, label, selected in _groups(rows, group_by):
         front = front_of(robot, label, selected, objectives(rows), task_key, RESAMPLES)
         calm_row, accurate_row = _pick(front, calm, 1), _pick(front, accurate, 0)
@@ -331,12 +335,17 @@ def study_tradeoff(
                 + (f"{calm_row} is both the calm and the accurate row" if calm_row else "no row"),
                 file=sys.stderr,
             )
+            skipped += 1
             continue
         result = group_tradeoff(solver, front, selected, calm_row, accurate_row, tasks)
         if result.tasks:
             out.append(result)
     if not out:
-        raise ConfigError("study", "no task on which both rows have finite values in any group")
+        raise ConfigError(
+            "study",
+            f"nothing to compare: in {skipped} groups one row is both the calmest and the most "
+            "accurate, in the others no task has finite values of both rows",
+        )
     to_accurate = holm([_finite_p(g.vs_accurate) for g in out])
     to_calm = holm([_finite_p(g.vs_calm) for g in out])
     return [

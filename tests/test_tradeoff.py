@@ -57,6 +57,7 @@ def test_the_command_prints_the_table(study: Path, capsys: pytest.CaptureFixture
     assert body and {line.split(" | ")[1] for line in body} <= {"near_singular", "beyond_reach"}
     assert all(line.rstrip(" |").rsplit("| ", 1)[-1] in OUTCOMES for line in body)
     assert "Evidence, not a proof" in text and "ignores one-step jumps" in text
+    assert "Errors below 0.0002 m" in text  # 1 % of success.max_position_error = 0.02 m
     assert main([str(study), "--group-by", "kind", "--calm", "dls", "--accurate", "pinv"]) == 0
     text = capsys.readouterr().out
     assert "| dls | pinv |" in text

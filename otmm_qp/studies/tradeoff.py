@@ -18,7 +18,8 @@ the calm row's ``max_joint_speed`` on that task: every joint path it returns has
 :math:`e^{acc}_i` and the calm row's :math:`e^{calm}_i`: counts lower / tied / higher, median
 difference :math:`e^{*}_i - e^{acc}_i`, Wilcoxon signed-rank p
 (:func:`otmm_qp.studies.statistics.paired_test`), Holm over the groups (one family per
-comparison).
+comparison). The tests clip every error at :func:`resolution` (the reference does not refine
+errors below 1 % of the position tolerance, so smaller differences are ties).
 
 Reading: if :math:`e^{*}_i(v_i) > e^{acc}_i` on most tasks (Holm-significant), then no joint
 path as calm as the calm row on every task — online or offline — is as accurate as the
@@ -50,6 +51,7 @@ import numpy as np
 
 from otmm_qp.exceptions import ConfigError, OtmmError
 from otmm_qp.reference import ReferenceResult, solve_reference
+from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.episodes import WorkUnit, _episode_duration, _generate_task
@@ -181,6 +183,17 @@ def rebuild_task(config: StudyConfig, row: Row) -> tuple[Robot, FloatArray | Non
     return robot, weight, task, _episode_duration(config, task)
 
 
+def resolution(config: StudyConfig) -> float:
+    """Smallest max error [m] the comparison resolves: ``SETTLE × position_tolerance``.
+
+    The reference stops refining once every error is below ``SETTLE`` of its tolerance, so
+    smaller errors are not minimised; the paired tests clip every error at this value (0
+    without a position tolerance).
+    """
+    tolerance = reference_settings(config).position_tolerance
+    return SETTLE * tolerance if tolerance is not None else 0.0
+
+
 def bounded_optimum(
     config: StudyConfig,
     robot: Robot,
@@ -254,10 +267,12 @@ def group_tradeoff(
                 _number(calm_rows[k], "reference.max_error"),
             )
         )
-    bounded = np.array([t.bounded_error for t in out], dtype=float)
+    floor = resolution(solver.config)
+    bounded = np.maximum([t.bounded_error for t in out], floor)
 
     def test(name: str, values: list[float]) -> PairedResult:
-        return paired_test(BOUNDED, name, bounded, np.array(values, dtype=float), 0, RESAMPLES)
+        other = np.maximum(np.array(values, dtype=float), floor)
+        return paired_test(BOUNDED, name, bounded, other, 0, RESAMPLES)
 
     return GroupTradeoff(
         front.robot,
@@ -366,8 +381,13 @@ def _counts(test: PairedResult) -> str:
     return f"{test.lower}/{test.ties}/{test.higher}"
 
 
-def render(groups: Sequence[GroupTradeoff]) -> str:
-    """Markdown: the per-group table and a plain sentence of what it shows."""
+def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
+    """Markdown: the per-group table and a plain sentence of what it shows.
+
+    Args:
+        groups: The groups of :func:`study_tradeoff`.
+        floor: The :func:`resolution` the tests clipped errors at [m] (named in the text).
+    """
     lines = [
         "| robot | group | calm row | accurate row | tasks | median speed cap [rad/s] "
         "| median error: bounded optimum / accurate / calm [m] "
@@ -415,9 +435,10 @@ def render(groups: Sequence[GroupTradeoff]) -> str:
         f"{local} of {tasks} tasks); 'forced' can be the solver's locality, 'not forced' "
         "cannot (its path is concrete). The cap ignores one-step jumps (the optimum may jump "
         "arbitrarily), so the optimum is a lower bound for jump-limited strategies too, "
-        "modulo that locality. Pose tasks: the error compared is the position error "
-        "(as the oracle-relative error); the optimum trades it against the orientation "
-        "tolerance, the rows do not.",
+        f"modulo that locality. Errors below {floor:.2g} m (1 % of the position tolerance, "
+        "which the solver does not refine) count as equal. Pose tasks: the error compared "
+        "is the position error (as the oracle-relative error); the optimum trades it "
+        "against the orientation tolerance, the rows do not.",
     ]
     return "\n".join(lines)
 
@@ -461,7 +482,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"tradeoff: error: {error}", file=sys.stderr)
         return 2
     try:
-        print(render(groups))
+        print(render(groups, resolution(config)))
     except BrokenPipeError:  # e.g. `... | head`: the reader left
         sys.stderr.close()
     return 0

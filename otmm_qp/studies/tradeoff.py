@@ -131,8 +131,8 @@ class GroupTradeoff:
         ``forced``: the bounded optimum's error is above the accurate row's on most tasks,
         Holm-significantly (no path as calm as the calm row was found as accurate);
         ``not forced``: below on most tasks, Holm-significantly (a path as calm as the calm
-        row *and* more accurate than the accurate row exists: the strategies leave accuracy
-        on the table); ``undecided`` otherwise.
+        row *and* more accurate than the accurate row exists — offline, knowing the whole
+        path; whether an online strategy can reach it is open); ``undecided`` otherwise.
         """
         test = self.vs_accurate
         if not self.holm_accurate < alpha:
@@ -425,7 +425,9 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
         "calm row on every task, online or offline, was found as accurate as the accurate "
         "row: the trade-off is the task's. Not forced (below on most tasks, Holm p < "
         f"{ALPHA:g}): {counts['not forced']} groups — there a path as calm as the calm row and "
-        "more accurate than the accurate row exists, so the trade-off is the strategies'. "
+        "more accurate than the accurate row exists: the task's kinematics and speeds do not "
+        "force the trade-off (whether a causal, online strategy can reach that path is open: "
+        "the optimum knows the whole path). "
         f"Undecided: {counts['undecided']} (the smallest group has n = {smallest} tasks: "
         f"its two-sided signed-rank p is at least 2·2⁻ⁿ = {2.0 ** (1 - smallest):.2g} before "
         f"Holm multiplies it by up to {len(groups)}). Evidence, not a "

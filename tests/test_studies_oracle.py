@@ -82,6 +82,43 @@ def test_resume_does_not_recompute_the_reference(study_out: Path) -> None:
     assert sum(r["controller"] == "oracle" for r in _rows(study_out)) == 5
 
 
+def test_stored_success_is_judged_with_the_reference_also_when_it_is_stored(
+    tmp_path: Path,
+) -> None:
+    """Controller rows are judged with their task's reference (graceful on unachievable
+    tasks), as the report judges them, also in a unit whose reference row is stored already."""
+    from otmm_qp.studies.episodes import run_chunk
+    from otmm_qp.studies.execute import make_chunks, payload_of
+    from otmm_qp.studies.report import load_rows
+
+    study = dict(
+        STUDY,
+        dt=0.02,
+        success={"max_position_error": 0.02, "max_joint_speed": 100.0},
+        generators=[{"type": "beyond_reach", "count": 3, "duration": [1.0, 1.5]}],
+    )
+    plan = plan_study(parse_study(study))
+    run_study(plan, tmp_path, "graceful.yaml", workers=1)
+    stored = {r["episode_key"]: bool(r["success"]) for r in _rows(tmp_path)}
+    _, report = load_rows(tmp_path)
+    online = [r for r in report.rows if r["controller"] != "oracle"]
+    judged = {r["episode_key"]: r["success"] for r in online}
+    assert {k: stored[k] for k in judged} == judged
+    # Discriminating: beyond the reach the tolerance fails every episode, the graceful rule not.
+    assert all(r["max_error"] > 0.02 for r in online)
+    assert any(r["success"] for r in online)
+
+    oracle_keys = {e.key for e in plan.episodes if e.controller < 0}
+    payload = payload_of(plan)
+    rows = [
+        row
+        for chunk in make_chunks(plan, oracle_keys)  # every reference stored, no controller
+        for row in run_chunk(payload, chunk).rows
+    ]
+    assert {r["controller"] for r in rows} == {"qp", "dls[damping=0.02]", "dls[damping=0.05]"}
+    assert {r["episode_key"]: bool(r["success"]) for r in rows} == judged
+
+
 def test_time_budget_is_a_stored_failed_reference(tmp_path: Path) -> None:
     study = dict(STUDY, generators=[STUDY["generators"][0]], reference={"time_budget": 1e-9})
     plan = plan_study(parse_study(study))

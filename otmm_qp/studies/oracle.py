@@ -26,6 +26,19 @@ REFERENCE_NAME = "oracle"
 OFFLINE = "offline"
 
 
+def task_reference(oracle_row: dict[str, Any]) -> dict[str, Any]:
+    """The ``reference.*`` columns a task's other rows are judged with, from its oracle row.
+
+    Its stored ``reference.*`` columns, with ``reference.max_error`` falling back to the
+    row's ``max_error`` and ``reference.final_error`` its ``final_error`` [m]. One
+    definition for the episode's stored ``success`` and the report's recomputed one.
+    """
+    reference = {k: v for k, v in oracle_row.items() if k.startswith("reference.")}
+    reference.setdefault("reference.max_error", oracle_row.get("max_error"))
+    reference["reference.final_error"] = oracle_row.get("final_error")
+    return reference
+
+
 def reference_settings(config: StudyConfig) -> ReferenceSettings:
     """Tolerances from ``success``, σ_S from ``metrics``, budget from ``reference``."""
     success, reference = config.success, config.reference

@@ -43,7 +43,7 @@ from otmm_qp.studies.fronts import (
     group_fronts,
     summary_table,
 )
-from otmm_qp.studies.oracle import REFERENCE_NAME
+from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
     ALPHA,
@@ -160,10 +160,7 @@ def join_reference(rows: list[dict[str, Any]]) -> None:
     for row in rows:
         if not _is_oracle(row):
             continue
-        reference = {k: v for k, v in row.items() if k.startswith("reference.")}
-        reference.setdefault("reference.max_error", row.get("max_error"))
-        reference["reference.final_error"] = row.get("final_error")
-        references[_task(row)] = reference
+        references[_task(row)] = task_reference(row)
     for row in rows:
         for name, value in references.get(_task(row), {}).items():
             if not _known(row.get(name)):

@@ -35,7 +35,10 @@ _CI = "tests/test_packaging.py::test_ci_runs_lint_format_and_types_before_the_re
 # command (normalised) → (tests that run it, how their run differs / why not run as is)
 COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
     "python3 -m venv .venv && .venv/bin/pip install -q . && .venv/bin/otmm-qp": (
-        (f"{_RUNS}::test_bare_command_reproduces_the_paper_into_results_paper",),
+        (
+            "tests/test_readme_paper_numbers.py::"
+            "test_bare_command_reproduces_the_paper_into_results_paper",
+        ),
         "installing is not run in the suite; the bare otmm-qp runs as `run` into results/paper "
         "with --figures none (comparison figures: the strategies fixture)",
     ),

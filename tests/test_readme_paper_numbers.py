@@ -1,32 +1,58 @@
 """The numbers in the README's "What the paper reproduction finds", from the embedded config.
 
-``tests/test_paper_claims.py`` asserts the claims (who spikes, what orders, which verdicts) with
-loose bounds; this file checks each number the section prints against the metric it comes from,
-at the README's printed precision (``matches_printed``: the last printed digit is the
-resolution) or, for "under X" / "> X", as the bound it states. Each entry is found in the
-whitespace-normalised section by a regex with one group per number, so a reworded sentence
-fails loudly instead of going unchecked.
+The module runs the README's first command, the bare ``otmm-qp`` (no command = ``run`` of the
+embedded ``paper.yaml`` into ``results/paper``), once in a temporary working directory, reduced
+by ``--figures none`` (the comparison figures are drawn in ``tests/test_readme_runs.py``), and
+reads its ``summary.csv``. ``tests/test_paper_claims.py`` asserts the claims (who spikes, what
+orders, which verdicts) with loose bounds; this file checks each number the section prints
+against the metric it comes from, at the README's printed precision (``matches_printed``: the
+last printed digit is the resolution) or, for "under X" / "> X", as the bound it states. Each
+entry is found in the whitespace-normalised section by a regex with one group per number, so a
+reworded sentence fails loudly instead of going unchecked.
 """
 
 from __future__ import annotations
 
+import csv
+import os
 import re
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from otmm_qp.config import embedded_config_path, load_config
-from otmm_qp.runner import SuiteResult, run_suite
+from otmm_qp.cli import main
 from tests.test_readme_runs import matches_printed
 
 ROOT = Path(__file__).resolve().parent.parent
 MODES = ("feedforward", "clik", "newton")
 
 
+Summary = dict[str, dict[str, str]]  # "experiment/loop_mode/controller" → summary.csv row
+
+
 @pytest.fixture(scope="module")
-def paper() -> SuiteResult:
-    return run_suite(load_config(embedded_config_path()), None, progress=None)
+def paper(tmp_path_factory: pytest.TempPathFactory) -> Summary:
+    """``otmm-qp`` (as ``run --figures none --quiet``) in a fresh directory: ``results/paper``."""
+    cwd = tmp_path_factory.mktemp("bare")
+    before = Path.cwd()
+    os.chdir(cwd)
+    try:
+        assert main(["run", "--figures", "none", "--quiet"]) == 0
+    finally:
+        os.chdir(before)
+    out = cwd / "results" / "paper"
+    for name in ("summary.csv", "summary.md", "claims.md", "report.html"):
+        assert (out / name).is_file(), name
+    with (out / "summary.csv").open(encoding="utf-8", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    return {f"{r['experiment']}/{r['loop_mode']}/{r['controller']}": r for r in rows}
+
+
+def test_bare_command_reproduces_the_paper_into_results_paper(paper: Summary) -> None:
+    assert {run.split("/")[0] for run in paper} >= {"E1", "E2", "E3"}
+    assert {run.split("/")[1] for run in paper} == set(MODES)
+    assert all(row["outcome"] == "completed" for row in paper.values())
 
 
 def _section() -> str:
@@ -35,11 +61,9 @@ def _section() -> str:
     return " ".join(text[start : text.index("\n## ", start + 5)].split())
 
 
-def _metric(paper: SuiteResult, run: str, name: str) -> float:
-    experiment, mode, controller = run.split("/")
-    record = paper.find(experiment, mode, controller)
-    assert record is not None, run
-    return float(record.metrics[name])
+def _metric(paper: Summary, run: str, name: str) -> float:
+    assert run in paper, run
+    return float(paper[run][name])
 
 
 def _exponent(text: str) -> str:
@@ -49,7 +73,7 @@ def _exponent(text: str) -> str:
     return f"{mantissa}e{power.translate(superscripts)}" if power else text
 
 
-Value = Callable[[SuiteResult], list[float]]
+Value = Callable[[Summary], list[float]]
 
 
 def _runs(name: str, *runs: str) -> Value:
@@ -79,9 +103,9 @@ CLAIMS: list[tuple[str, list[tuple[str, Value]]]] = [
             (
                 "min",
                 lambda paper: [
-                    float(r.metrics["min_sigma"])
-                    for r in paper.records
-                    if (r.result.experiment, r.result.loop_mode) == ("E1", "feedforward")
+                    float(row["min_sigma"])
+                    for run, row in paper.items()
+                    if run.startswith("E1/feedforward/")
                 ],
             )
         ],
@@ -145,7 +169,7 @@ def _holds(comparison: str, printed: str, values: list[float]) -> bool:
 
 
 @pytest.mark.parametrize("index", range(len(CLAIMS)))
-def test_paper_reproduction_numbers_in_readme(paper: SuiteResult, index: int) -> None:
+def test_paper_reproduction_numbers_in_readme(paper: Summary, index: int) -> None:
     pattern, checks = CLAIMS[index]
     found = re.search(pattern, _section())
     assert found, f"the README sentence changed its form: {pattern}"

@@ -4,8 +4,8 @@
 once divided by zero) and ``configs/strategies/arms.yaml`` run once per module through the CLI's
 ``main``; every cell of the README's strategies table is checked against their ``summary.csv`` at
 the precision the README prints, and so are the numbers of the paragraph below it. The other
-tests run the bare ``otmm-qp`` (embedded paper config into ``results/paper``), the UR5 wrist
-replay command and a reduced ``configs/studies/arms.yaml``.
+tests run the UR5 wrist replay command and a reduced ``configs/studies/arms.yaml`` (the bare
+``otmm-qp`` runs in ``tests/test_readme_paper_numbers.py``).
 """
 
 from __future__ import annotations
@@ -151,23 +151,6 @@ def test_readme_no_strategy_dominates_paragraph(strategies: dict[str, Summary]) 
     assert matches_printed(float(record["max_joint_speed"]), wrist)
     record = arms[("ur5_elbow_beyond_pose", "clik", "OTMM-directional")]
     assert matches_printed(float(record["max_jump"]), jump)
-
-
-def test_bare_command_reproduces_the_paper_into_results_paper(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """``.venv/bin/otmm-qp`` (no command = ``run`` of the embedded config into ``results/paper``).
-
-    Reduced by ``--figures none`` (the comparison figures are drawn by the strategies fixture).
-    """
-    monkeypatch.chdir(tmp_path)
-    assert main(["run", "--figures", "none", "--quiet"]) == 0, capsys.readouterr().err
-    out = tmp_path / "results" / "paper"
-    for name in ("summary.csv", "summary.md", "claims.md", "report.html"):
-        assert (out / name).is_file(), name
-    summary = _summary(out)
-    assert {e for e, _, _ in summary} >= {"E1", "E2", "E3"}
-    assert {m for _, m, _ in summary} == {"feedforward", "clik", "newton"}
 
 
 def test_ur5_wrist_replay_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

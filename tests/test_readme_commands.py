@@ -233,3 +233,36 @@ def test_extraction_rules() -> None:
         "otmm-qp run e.yaml",
         "otmm-qp run f.yaml",
     ]
+
+
+def _plan_sizes(name: str) -> tuple[int, int, int]:
+    """(episodes, tasks, controller rows after grid expansion) of a shipped study's plan."""
+    from otmm_qp.studies.spec import load_study, plan_study
+
+    episodes = plan_study(load_study(ROOT / "configs" / "studies" / f"{name}.yaml")).episodes
+    tasks = {(e.robot, e.generator, e.task_index) for e in episodes}
+    controllers = {e.controller for e in episodes} - {-1}  # -1: the task's oracle row
+    return len(episodes), len(tasks), len(controllers)
+
+
+def test_study_sizes_the_readme_states_are_the_plans() -> None:
+    """The sizes written next to the study commands, from the shipped files' plans (no runs)."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    (p_episodes, p_tasks, p_rows), (a_episodes, a_tasks, a_rows), (l_episodes, l_tasks, l_rows) = (
+        _plan_sizes(n) for n in ("planar", "arms", "plants")
+    )
+    checks = [
+        (r"planar\.yaml --out results/planar-study # (\d+) episodes \((\d+) of them oracle rows\)",
+         (p_episodes, p_tasks)),
+        (r"\((\d+) tasks × (\d+) controllers \+ one oracle row per task", (p_tasks, p_rows)),
+        (r"UR5 \+ Panda, ([\d,]+) tasks x \((\d+) controllers \+ oracle\)", (a_tasks, a_rows)),
+        (r"([\d,]+) UR5 \+ Panda pose tasks × (\d+) controllers \+ one reference per task, "
+         r"([\d,]+) episodes", (a_tasks, a_rows, a_episodes)),
+        (r"plants\.yaml --out results/plants-study # (\d+) episodes", (l_episodes,)),
+        (r"The same (\d+) UR5 and Panda pose tasks .*? under four plants: (\d+) controller "
+         r"episodes plus one offline reference per task", (l_tasks, l_tasks * l_rows)),
+    ]  # fmt: skip
+    for pattern, expected in checks:
+        found = re.search(pattern, text)
+        assert found, f"the README sentence changed its form: {pattern}"
+        assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern

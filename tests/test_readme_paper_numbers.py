@@ -177,3 +177,12 @@ def test_paper_reproduction_numbers_in_readme(paper: Summary, index: int) -> Non
     for printed, (comparison, value) in zip(found.groups(), checks, strict=True):
         values = value(paper)
         assert _holds(comparison, printed, values), (pattern[:40], printed, comparison, values)
+
+
+def test_conformance_pinv_speed_in_readme(paper: Summary) -> None:
+    """ "`pinv` fails E2 (N rad/s from the singular start)": the conformance suite runs paper E2 in
+    CLIK with the embedded config's settings, so N is the CLIK RMRC peak of that run."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    found = re.search(r"`pinv` fails E2 \((\d+) rad/s from the singular start", text)
+    assert found, "the README's conformance sentence changed its form"
+    assert matches_printed(_metric(paper, "E2/clik/RMRC", "max_joint_speed"), found.group(1))

@@ -450,6 +450,18 @@ def test_list_params_shows_constraints_and_defaults(capsys: pytest.CaptureFixtur
     assert "      limit_gain (refused): removed (limits have one form): write limits: [" in text
 
 
+def test_list_params_with_an_unknown_name_is_one_line_and_exit_2(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["list", "--params", "qp", "nosuch"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.strip().splitlines() == [
+        "otmm-qp: error: --params: no plugin named 'nosuch'; `otmm-qp list` shows the "
+        "registered names"
+    ]
+
+
 def test_default_list_is_unchanged_in_shape(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["list"]) == 0
     text = capsys.readouterr().out

@@ -49,8 +49,20 @@ def parameter_lines(group: str, name: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print every registered plugin, by group (with ``--params``, their parameters)."""
+    """Print every registered plugin, by group (with ``--params``, their parameters).
+
+    Raises:
+        OtmmError: A name given to ``--params`` that no plugin is registered under.
+    """
     wanted: list[str] | None = args.params
+    if wanted:
+        known = {name for group in registry.GROUPS for name in registry.specs(group)}
+        unknown = [name for name in wanted if name not in known]
+        if unknown:
+            raise OtmmError(
+                f"--params: no plugin named {', '.join(map(repr, unknown))}; "
+                "`otmm-qp list` shows the registered names"
+            )
     for group in registry.GROUPS:
         lines = []
         for name, spec in registry.specs(group).items():

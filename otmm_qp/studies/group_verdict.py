@@ -147,7 +147,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         rows = load_rows(args.study)[1]
-        check_highlight(rows, args.ours)
+        check_highlight(rows, args.ours, "--ours")
         fronts = kind_fronts(rows) if args.kinds else study_fronts(rows)
         text = render(fronts, args.ours, args.kinds)
     except OtmmError as error:

@@ -462,15 +462,15 @@ def study_fronts(rows: Rows) -> list[GroupFront]:
     return group_fronts(rows.rows, objectives(rows), task_key, resamples=RESAMPLES)
 
 
-def check_highlight(rows: Rows, highlight: str | None) -> None:
-    """Refuse a ``--highlight`` that names no controller of the study.
+def check_highlight(rows: Rows, highlight: str | None, option: str = "--highlight") -> None:
+    """Refuse a ``--highlight`` (or ``option``) that names no controller of the study.
 
     Raises:
         ConfigError: ``highlight`` is not one of :meth:`Rows.controllers`.
     """
     if highlight is not None and highlight not in rows.controllers():
         raise ConfigError(
-            "--highlight",
+            option,
             f"no controller {highlight!r:.60} in the study; have: {', '.join(rows.controllers())}",
         )
 

@@ -1,0 +1,193 @@
+"""The README's run commands that no other test ran, and the "Beyond the paper" table they print.
+
+``otmm-qp run configs/strategies/paper.yaml`` (with its comparison figures, where the symlog note
+once divided by zero) and ``configs/strategies/arms.yaml`` run once per module through the CLI's
+``main``; every cell of the README's strategies table is checked against their ``summary.csv`` at
+the precision the README prints, and so are the numbers of the paragraph below it. The other
+tests run the UR5 wrist replay command and a reduced ``configs/studies/arms.yaml`` (the bare
+``otmm-qp`` runs in ``tests/test_readme_paper_numbers.py``).
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from decimal import Decimal
+from pathlib import Path
+
+import pytest
+import yaml
+
+from otmm_qp.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+STRATEGIES = ROOT / "configs" / "strategies"
+
+# README column → (config, experiment); every cell is the CLIK run.
+COLUMNS = {
+    "E1": ("paper", "E1"),
+    "E2 (singular start)": ("paper", "E2"),
+    "UR5 wrist crossing": ("arms", "ur5_wrist_pose"),
+    "UR5 elbow, beyond reach": ("arms", "ur5_elbow_beyond_pose"),
+}
+# README row → controller name in both configs.
+ROWS = {
+    "RMRC (pinv)": "RMRC",
+    "OTMM-cbrt (paper)": "OTMM-cbrt",
+    "OTMM-bounded": "OTMM-bounded",
+    "OTMM-directional": "OTMM-directional",
+    "J-PARSE": "J-PARSE",
+    "SNS": "SNS",
+}
+# The three numbers of a cell, in the README's order.
+CELL_METRICS = ("max_error_window", "max_joint_speed", "max_jump")
+
+Summary = dict[tuple[str, str, str], dict[str, str]]
+
+
+def _summary(folder: Path) -> Summary:
+    with (folder / "summary.csv").open(encoding="utf-8", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    return {(r["experiment"], r["loop_mode"], r["controller"]): r for r in rows}
+
+
+@pytest.fixture(scope="module")
+def strategies(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Summary]:
+    """Both README commands, run once: ``paper`` with comparison figures, ``arms`` without.
+
+    Reduced only in figures: the per-run PNGs of ``paper.yaml`` (108 of them, ~50 s) are drawn by
+    the same code the comparison figures use and are covered by ``tests/test_figures.py``.
+    """
+    base = tmp_path_factory.mktemp("strategies")
+    out: dict[str, Summary] = {}
+    for name, figures in (("paper", "comparison"), ("arms", "none")):
+        folder = base / name
+        argv = ["run", str(STRATEGIES / f"{name}.yaml"), "--out", str(folder), "--quiet"]
+        assert main([*argv, "--figures", figures]) == 0, name
+        assert (folder / "summary.md").is_file() and (folder / "report.html").is_file()
+        out[name] = _summary(folder)
+        if name == "paper":  # one comparison figure per experiment and loop mode
+            for experiment in ("E1", "E2", "E3"):
+                pngs = sorted((folder / experiment).rglob("*.png"))
+                assert len(pngs) >= 3, (experiment, pngs)
+    return out
+
+
+def _readme_table() -> dict[str, list[str]]:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = text.index("| strategy | E1 | E2 (singular start)")
+    lines = text[start : text.index("\n\n", start)].splitlines()
+    header = [c.strip() for c in lines[0].strip("|").split("|")]
+    assert header[1:] == list(COLUMNS), header
+    rows = {}
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows[cells[0]] = cells[1:]
+    return rows
+
+
+def matches_printed(value: float, printed: str) -> bool:
+    """Whether ``value`` rounds to ``printed`` at the precision ``printed`` shows.
+
+    The printed number's last digit sets the resolution: ``0.09`` means |v − 0.09| ≤ 0.005,
+    ``2.3e-4`` means |v − 2.3·10⁻⁴| ≤ 0.05·10⁻⁴, ``11`` means |v − 11| ≤ 0.5.
+    """
+    number = Decimal(printed)
+    half_unit = Decimal(5).scaleb(number.as_tuple().exponent - 1)  # type: ignore[operator]
+    return abs(Decimal(repr(value)) - number) <= half_unit * Decimal("1.000001")
+
+
+@pytest.mark.parametrize(
+    ("value", "printed", "expected"),
+    [(0.0926, "0.09", True), (0.000233, "2.3e-4", True), (10.504, "11", True),
+     (1.0, "1.0", True), (0.0101, "0.010", True), (0.0926, "0.093", True),
+     (0.0926, "0.092", False), (0.000238, "2.3e-4", False), (11.6, "11", False)],
+)  # fmt: skip
+def test_printed_precision_rule(value: float, printed: str, expected: bool) -> None:
+    assert matches_printed(value, printed) is expected
+
+
+def test_readme_strategies_table_is_regenerated(strategies: dict[str, Summary]) -> None:
+    table = _readme_table()
+    assert set(table) == set(ROWS), set(table) ^ set(ROWS)
+    for row, cells in table.items():
+        for cell, (config, experiment) in zip(cells, COLUMNS.values(), strict=True):
+            record = strategies[config][(experiment, "clik", ROWS[row])]
+            where = (row, experiment, cell)
+            assert record["outcome"] == "completed", where
+            if cell == "blow-up":
+                assert record["blow_up"] == "True", where
+                continue
+            assert record["blow_up"] == "False", where
+            printed = [part.strip() for part in cell.split("/")]
+            assert len(printed) == len(CELL_METRICS), where
+            for metric, text in zip(CELL_METRICS, printed, strict=True):
+                value = float(record[metric])
+                assert matches_printed(value, text), (*where, metric, value)
+
+
+def test_readme_no_strategy_dominates_paragraph(strategies: dict[str, Summary]) -> None:
+    """The numbers of "No strategy dominates" (all but the µs timings of the benchmark)."""
+    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    found = re.search(
+        r"removes the E2 spike \(([0-9.]+) rad/s in every loop mode\) and keeps cbrt's E1 window "
+        r"error \(([0-9.]+) ×\).*?UR5 wrist peak ([0-9.]+) rad/s, beyond-reach jump ([0-9.]+) "
+        r"rad/s\), paying about ([0-9.]+) × cbrt's window error on E1",
+        text,
+    )
+    assert found, "the README's 'No strategy dominates' paragraph changed its form"
+    e2_peak, ratio, wrist, jump, directional = found.groups()
+    paper, arms = strategies["paper"], strategies["arms"]
+    for mode in ("feedforward", "clik", "newton"):
+        peak = float(paper[("E2", mode, "OTMM-bounded")]["max_joint_speed"])
+        assert matches_printed(peak, e2_peak), (mode, peak)
+
+    def window(controller: str) -> float:
+        return float(paper[("E1", "clik", controller)]["max_error_window"])
+
+    assert matches_printed(window("OTMM-bounded") / window("OTMM-cbrt"), ratio)
+    assert matches_printed(window("OTMM-directional") / window("OTMM-cbrt"), directional)
+    record = arms[("ur5_wrist_pose", "clik", "OTMM-directional")]
+    assert matches_printed(float(record["max_joint_speed"]), wrist)
+    record = arms[("ur5_elbow_beyond_pose", "clik", "OTMM-directional")]
+    assert matches_printed(float(record["max_jump"]), jump)
+
+
+def test_ur5_wrist_replay_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``otmm-qp run configs/arms/ur5_wrist.yaml --replay`` writes the page the README names."""
+    out = tmp_path / "ur5_wrist"
+    argv = ["run", str(ROOT / "configs/arms/ur5_wrist.yaml"), "--replay", "--out", str(out)]
+    assert main([*argv, "--figures", "none", "--quiet"]) == 0, capsys.readouterr().err
+    page = out / "replays" / "ur5_wrist_pose-clik.html"
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "`results/ur5_wrist/replays/ur5_wrist_pose-clik.html`" in text
+    assert page.is_file() and page.stat().st_size > 10_000
+    assert "replays/ur5_wrist_pose-clik.html" in (out / "report.html").read_text(encoding="utf-8")
+
+
+def test_arms_study_command_reduced(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``otmm-qp study configs/studies/arms.yaml`` on a reduced copy: one task per generator.
+
+    The shipped file is copied with every generator's ``count`` set to 1 (20,000 → 100
+    episodes: 2 robots × 5 tasks × (9 controllers after grid expansion + the reference));
+    nothing else changes.
+    """
+    data = yaml.safe_load((ROOT / "configs/studies/arms.yaml").read_text(encoding="utf-8"))
+    for generator in data["generators"]:
+        generator["count"] = 1
+    config = tmp_path / "arms.yaml"
+    config.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    out = tmp_path / "arms-study"
+    status = main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet"])
+    assert status in (0, 2), capsys.readouterr().err  # 2: an episode stored as an error row
+    from otmm_qp.studies.storage import read_episodes
+
+    table = read_episodes(out)
+    assert table is not None
+    rows = table.to_pylist()
+    assert len({r["task_id"] for r in rows}) == 2 * 5
+    controllers = {r["controller"] for r in rows}
+    assert "oracle" in controllers and len(controllers) == 9 + 1  # README: 9 controllers
+    assert len(rows) == 10 * len(controllers)
+    assert (out / "study_report.md").is_file() and (out / "study_report.html").is_file()
+    assert main(["report", str(out)]) == 0  # `otmm-qp report DIR` on a study folder

@@ -75,6 +75,16 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
         ("tests/test_readme_strategies.py::test_readme_strategies_table_is_regenerated",),
         "its main() with --out, on the study above",
     ),
+    "otmm-qp study configs/studies/strategies_arms.yaml --out results/strategies-arms "
+    "--workers 1": (
+        ("tests/test_tradeoff.py::test_the_command_prints_the_table",),
+        "a tiny planar study in tmp_path stands for the 2,112-episode arms study (~70 s)",
+    ),
+    "python -m otmm_qp.studies.tradeoff results/strategies-arms --group-by kind": (
+        ("tests/test_tradeoff.py::test_the_command_prints_the_table",),
+        "its main() with both groupings on the tiny study; the README's counts come from the "
+        "full study (docs/strategies.md gives the command and timings)",
+    ),
     "otmm-qp study configs/studies/plants.yaml --out results/plants-study": (
         ("tests/test_plant_runs.py::test_shipped_plants_study_plans_and_runs_a_slice",),
         "1,000 episodes (~1 min): a slice of the shipped file; the README's plant table is not "

@@ -168,7 +168,8 @@ class GroupFront:
         return None
 
 
-def _number(row: Row, name: str) -> float:
+def row_value(row: Row, name: str) -> float:
+    """A row's numeric ``name``; NaN when missing, not a number, or the run errored."""
     value = row.get(name)
     if row.get("status") == "error" or not isinstance(value, int | float):
         return math.nan
@@ -180,7 +181,7 @@ def _values(rows: Iterable[Row], objective: str, key: TaskKey) -> dict[str, dict
     out: dict[str, dict[Hashable, float]] = {}
     for row in rows:
         if row["controller"] != REFERENCE_NAME:
-            out.setdefault(row["controller"], {})[key(row)] = _number(row, objective)
+            out.setdefault(row["controller"], {})[key(row)] = row_value(row, objective)
     return out
 
 

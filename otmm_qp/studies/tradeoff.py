@@ -55,7 +55,7 @@ from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.episodes import WorkUnit, _episode_duration, _generate_task
-from otmm_qp.studies.fronts import GroupFront, front_of
+from otmm_qp.studies.fronts import GroupFront, front_of, row_value
 from otmm_qp.studies.oracle import REFERENCE_NAME, reference_settings
 from otmm_qp.studies.report import RESAMPLES, Rows, load_rows, objectives, task_key
 from otmm_qp.studies.schema import StudyConfig
@@ -142,13 +142,6 @@ class GroupTradeoff:
         if test.favoured == BOUNDED and test.lower > test.pairs / 2:
             return OUTCOMES[1]
         return OUTCOMES[2]
-
-
-def _number(row: Row, name: str) -> float:
-    value = row.get(name)
-    if row.get("status") == "error" or not isinstance(value, int | float):
-        return math.nan
-    return float(value)
 
 
 def _by_task(rows: Sequence[Row], controller: str) -> dict[Hashable, Row]:
@@ -247,13 +240,13 @@ def group_tradeoff(
     keys = [
         k
         for k in keys
-        if math.isfinite(_number(calm_rows[k], "max_joint_speed"))
-        and math.isfinite(_number(accurate_rows[k], "max_error"))
-        and math.isfinite(_number(calm_rows[k], "max_error"))
+        if math.isfinite(row_value(calm_rows[k], "max_joint_speed"))
+        and math.isfinite(row_value(accurate_rows[k], "max_error"))
+        and math.isfinite(row_value(calm_rows[k], "max_error"))
     ][:tasks]
     out = []
     for k in keys:
-        speed = _number(calm_rows[k], "max_joint_speed")
+        speed = row_value(calm_rows[k], "max_joint_speed")
         result = solver.solve(calm_rows[k], speed)
         out.append(
             TaskTradeoff(
@@ -262,9 +255,9 @@ def group_tradeoff(
                 float(result.max_error),
                 float(result.max_joint_speed),
                 result.status,
-                _number(accurate_rows[k], "max_error"),
-                _number(calm_rows[k], "max_error"),
-                _number(calm_rows[k], "reference.max_error"),
+                row_value(accurate_rows[k], "max_error"),
+                row_value(calm_rows[k], "max_error"),
+                row_value(calm_rows[k], "reference.max_error"),
             )
         )
     floor = resolution(solver.config)

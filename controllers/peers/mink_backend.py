@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
-from otmm_qp.limits import LimitSpec
 from otmm_qp.robots.peer_models import (
     JointMap,
     PinocchioPeerModel,
@@ -21,15 +19,14 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import PEER_REMOVED, QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
+from .peer_backend import QpPeerBackend, peer_limits
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
 
 
-class MinkBackend(PeerBackend):
+class MinkBackend(QpPeerBackend):
     r"""``mink.solve_ik`` with one velocity-level site task, configuration and velocity limits.
 
     .. math::
@@ -66,20 +63,7 @@ class MinkBackend(PeerBackend):
 
     name = "mink"
     peer = "mink"
-    parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
-    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
-
-    def __init__(
-        self,
-        solver: str = "daqp",
-        damping: float | None = None,
-        regularization: float | None = None,
-        lm_damping: float = 0.0,
-        limits: bool | Sequence[LimitSpec] | None = None,
-    ) -> None:
-        check_params(self, locals())
-        require("mink", ["mujoco", "mink"])
-        self.configure_qp(solver, (damping, regularization, lm_damping), limits)
+    modules = ("mujoco", "mink")
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build the MuJoCo model, check it against Pinocchio, set up task and limits.

@@ -20,9 +20,9 @@ and its ``task_kind``, never from the robot's class.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Real
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -36,7 +36,7 @@ from otmm_qp.robots.peer_models import describe
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import task_rows
 from otmm_qp.state import KinematicState
-from otmm_qp.validation import Boolean, Constraints, InstanceOf, Interval
+from otmm_qp.validation import Boolean, Constraints, InstanceOf, Interval, check_params
 
 #: The peers' Tikhonov weight μ when neither ``damping`` nor ``regularization`` is given.
 DEFAULT_REGULARIZATION = 1e-12
@@ -194,35 +194,52 @@ class PeerBackend(Backend):
         self.limit_set = peer_limit_set(limits, self.peer)
         self.enforces_limits = bool(self.limit_set.boxes)
 
-    def configure_qp(
+    def orientation_weight(self) -> float:
+        """1 when the task commands the angular velocity (pose tasks), else 0."""
+        return 1.0 if bool(np.any(self.task_rows >= 3)) else 0.0
+
+
+class QpPeerBackend(PeerBackend):
+    """A peer that solves a QP through qpsolvers (pink, mink): the settings they share.
+
+    Subclasses name their library (:attr:`peer`) and the modules it needs (:attr:`modules`),
+    and build the peer's model in :meth:`bind`.
+
+    Args:
+        solver: An installed qpsolvers backend, e.g. ``daqp``, ``proxqp``, ``osqp``.
+        damping: λ ≥ 0 [task units]: the library's Tikhonov weight is μ = λ²
+            (:func:`damping_weight`).
+        regularization: μ ≥ 0 itself [cost]/[rad²] instead of ``damping``; 10⁻¹² when
+            neither is given.
+        lm_damping: The library's Levenberg–Marquardt damping ≥ 0 of the frame task.
+        limits: The ``limits`` option (:func:`peer_limit_set`).
+
+    Raises:
+        PeerUnavailable: A module of :attr:`modules` is not installed.
+        SolverNotFound: ``solver`` is not an installed qpsolvers backend.
+        ParameterError: A damping is negative or not finite, or a limit is invalid.
+    """
+
+    #: Modules the peer library needs (checked by :func:`require` before anything else).
+    modules: ClassVar[tuple[str, ...]] = ()
+    parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
+    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
+
+    def __init__(
         self,
-        solver: str,
-        weights: tuple[float | None, float | None, float],
-        limits: bool | Sequence[LimitSpec] | None,
+        solver: str = "daqp",
+        damping: float | None = None,
+        regularization: float | None = None,
+        lm_damping: float = 0.0,
+        limits: bool | Sequence[LimitSpec] | None = None,
     ) -> None:
-        """Validate and store the settings shared by the QP-based peers (pink, mink).
-
-        Args:
-            solver: An installed qpsolvers backend.
-            weights: ``(damping λ, regularization μ, lm_damping)``: the library's Tikhonov
-                weight is μ (``damping`` gives μ = λ², :func:`damping_weight`; 10⁻¹² when
-                neither is given) and its Levenberg–Marquardt damping ``lm_damping ≥ 0``.
-            limits: The ``limits`` option (:func:`peer_limit_set`).
-
-        Raises:
-            SolverNotFound: ``solver`` is not an installed qpsolvers backend.
-            ParameterError: A damping is negative or not finite, or a limit is invalid.
-        """
+        check_params(self, locals())
+        require(self.peer, list(self.modules))
         import qpsolvers
 
         if solver not in qpsolvers.available_solvers:
             raise SolverNotFound(solver, qpsolvers.available_solvers)
-        damping, regularization, lm_damping = weights
         self.solver = solver
         self.regularization = damping_weight(damping, regularization, DEFAULT_REGULARIZATION)
         self.lm_damping = float(lm_damping)
         self.configure_limits(limits)
-
-    def orientation_weight(self) -> float:
-        """1 when the task commands the angular velocity (pose tasks), else 0."""
-        return 1.0 if bool(np.any(self.task_rows >= 3)) else 0.0

@@ -3,22 +3,19 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from otmm_qp.backends.backend import BackendOutput
-from otmm_qp.limits import LimitSpec
 from otmm_qp.robots.peer_models import PinocchioPeerModel
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
-from otmm_qp.validation import Constraints, check_params
 
-from .peer_backend import PEER_REMOVED, QP_PEER_CONSTRAINTS, PeerBackend, peer_limits, require
+from .peer_backend import QpPeerBackend, peer_limits
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -39,7 +36,7 @@ class _DropPinkLimitWarnings(logging.Filter):
 _PINK_FILTER = _DropPinkLimitWarnings()
 
 
-class PinkBackend(PeerBackend):
+class PinkBackend(QpPeerBackend):
     r"""``pink.solve_ik`` with one velocity-level frame task, configuration and velocity limits.
 
     Each step pink solves (``Δq = q̇·dt``, ``e = −ẋ·dt``, ``W`` the task weight, ``J`` the
@@ -74,20 +71,7 @@ class PinkBackend(PeerBackend):
 
     name = "pink"
     peer = "pink"
-    parameter_constraints: ClassVar[Constraints] = QP_PEER_CONSTRAINTS
-    removed_parameters: ClassVar[Mapping[str, str]] = PEER_REMOVED
-
-    def __init__(
-        self,
-        solver: str = "daqp",
-        damping: float | None = None,
-        regularization: float | None = None,
-        lm_damping: float = 0.0,
-        limits: bool | Sequence[LimitSpec] | None = None,
-    ) -> None:
-        check_params(self, locals())
-        require("pink", ["pink"])
-        self.configure_qp(solver, (damping, regularization, lm_damping), limits)
+    modules = ("pink",)
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Build pink's configuration, velocity task and limits for ``robot`` (``dt`` in [s]).

@@ -5,8 +5,8 @@ from __future__ import annotations
 from numbers import Real
 from typing import ClassVar
 
-from otmm_qp.backends.backend import Backend, BackendOutput
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.backends.backend import Backend, BackendOutput, svd_work
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.validation import Constraints, Interval, check_params
 
@@ -27,6 +27,7 @@ class DampedLeastSquaresBackend(Backend):
     """
 
     name = "dls"
+    _work: FloatArray | None = None  # svd_work buffers, allocated by bind
     parameter_constraints: ClassVar[Constraints] = {
         "damping": Interval(Real, 0, None, closed="left"),
     }
@@ -34,11 +35,17 @@ class DampedLeastSquaresBackend(Backend):
     def __init__(self, damping: float = 0.05) -> None:
         check_params(self, locals())
         self.damping = float(damping)
+        self._mu = self.damping**2
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Attach the robot; allocate the step's SVD buffers (:func:`svd_work`)."""
+        super().bind(robot, dt)
+        self._work = svd_work(robot)
 
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Damped solution [rad/s], shape ``(nv,)``."""
         return self.unconstrained_output(
-            damped_least_squares(state, xdot, self.damping**2), self.damping
+            damped_least_squares(state, xdot, self._mu, self._work), self.damping
         )

@@ -7,9 +7,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from otmm_qp.backends.backend import Backend, BackendOutput
+from otmm_qp.backends.backend import Backend, BackendOutput, svd_work
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.validation import Constraints, Interval, check_params
 
@@ -42,6 +42,7 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
     """
 
     name = "dls_adaptive"
+    _work: FloatArray | None = None  # svd_work buffers, allocated by bind
     parameter_constraints: ClassVar[Constraints] = {
         "alpha": Interval(Real, 0, None, closed="left"),
         "w0": [Interval(Real, 0, None, closed="neither"), None],
@@ -72,9 +73,16 @@ class AdaptiveDampedLeastSquaresBackend(Backend):
             return 0.0
         return self.alpha * (1.0 - w / w0) ** 2
 
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Attach the robot; allocate the step's SVD buffers (:func:`svd_work`)."""
+        super().bind(robot, dt)
+        self._work = svd_work(robot)
+
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """Adaptively damped solution [rad/s], shape ``(nv,)``."""
         k = self.damping_for(state)
-        return self.unconstrained_output(damped_least_squares(state, xdot, k), float(np.sqrt(k)))
+        return self.unconstrained_output(
+            damped_least_squares(state, xdot, k, self._work), float(np.sqrt(k))
+        )

@@ -9,9 +9,10 @@ from otmm_qp.backends.backend import (
     RCOND,
     Backend,
     BackendOutput,
+    svd_work,
     truncated_pseudoinverse_apply,
 )
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.validation import Constraints, Interval, check_params
 
@@ -34,6 +35,7 @@ class PseudoInverseBackend(Backend):
     """
 
     name = "pinv"
+    _work: FloatArray | None = None  # svd_work buffers, allocated by bind
     parameter_constraints: ClassVar[Constraints] = {
         "rcond": Interval(Real, 0, 1, closed="left"),
     }
@@ -42,8 +44,15 @@ class PseudoInverseBackend(Backend):
         check_params(self, locals())
         self.rcond = float(rcond)
 
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Attach the robot; allocate the step's SVD buffers (:func:`svd_work`)."""
+        super().bind(robot, dt)
+        self._work = svd_work(robot)
+
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
         """``q̇ = J_w^+ ẋ_w`` [rad/s], shape ``(nv,)``."""
-        return self.unconstrained_output(truncated_pseudoinverse_apply(state, xdot, self.rcond))
+        return self.unconstrained_output(
+            truncated_pseudoinverse_apply(state, xdot, self.rcond, self._work)
+        )

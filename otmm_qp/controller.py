@@ -13,7 +13,14 @@ from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
-from otmm_qp.status import DIVERGENCE_SPEED, Status, classify, speed_limit_thresholds
+from otmm_qp.status import (
+    DIVERGENCE_SPEED,
+    SpeedWork,
+    Status,
+    classify,
+    quiet_speed_squared,
+    speed_limit_thresholds,
+)
 
 
 class ControllerOutput(NamedTuple):
@@ -86,8 +93,10 @@ class Controller:
         #: Registered name of the backend.
         self.backend_name: str = backend.name if backend_name is None else backend_name
         self._divergence_speed = speed
-        self._divergence_squared = speed * speed  # inf stays inf: the check is then off
         self._speed_thresholds: FloatArray | None = None
+        # ‖q̇‖² below this: no speed rule can apply (set per run by bind).
+        self._quiet_squared = speed * speed  # inf stays inf: the check is then off
+        self._speed_work: SpeedWork | None = None
 
     @property
     def divergence_speed(self) -> float:
@@ -102,6 +111,8 @@ class Controller:
         limits = np.asarray(robot.velocity_limits, dtype=float)
         check = not self.backend.enforces_limits and bool(np.isfinite(limits).any())
         self._speed_thresholds = speed_limit_thresholds(limits) if check else None
+        self._quiet_squared = quiet_speed_squared(self._speed_thresholds, self._divergence_speed)
+        self._speed_work = SpeedWork(robot.nv)
         self.reset()
 
     def reset(self) -> None:
@@ -126,34 +137,41 @@ class Controller:
         """
         xdot = np.asarray(xdot, dtype=float)  # no copy for float arrays (the common case)
         qdot_prev = np.asarray(qdot_prev, dtype=float)
-        shape = state.jacobian.shape
-        if xdot.shape != shape[:1] or qdot_prev.shape != shape[1:]:
-            wrong_xdot = xdot.shape != shape[:1]
+        n, nv = state.jacobian.shape
+        if xdot.shape != (n,) or qdot_prev.shape != (nv,):
+            wrong_xdot = xdot.shape != (n,)
             raise DimensionError(
                 "xdot" if wrong_xdot else "qdot_prev",
-                shape[:1] if wrong_xdot else shape[1:],
+                (n,) if wrong_xdot else (nv,),
                 xdot.shape if wrong_xdot else qdot_prev.shape,
             )
         unit = state.task_jacobian is state.jacobian  # no task weight: skip the scaling
         weighted = xdot if unit else state.weight * xdot
-        reports = []
-        for task_filter in self.filters:
-            weighted, report = task_filter.apply(state, weighted)
-            reports.append(report)
+        reports: tuple[FilterReport, ...] = ()
+        if self.filters:
+            collected = []
+            for task_filter in self.filters:
+                weighted, report = task_filter.apply(state, weighted)
+                collected.append(report)
+            reports = tuple(collected)
         result = self.backend.solve(state, weighted, qdot_prev)
         qdot = result.qdot
         # One dot product: NaN/inf (or |q̇| beyond 1e154) make it non-finite.
         speed_squared = float(qdot.dot(qdot))  # ndarray.dot: the least call overhead
-        thresholds = self._speed_thresholds
-        # Skipped when no rule can apply: a limit-enforcing backend's finite step slower than
-        # the divergence speed (NaN and inf fail the < test).
-        if thresholds is not None or not speed_squared < self._divergence_squared:
+        # Skipped when no rule can apply (quiet_speed_squared: slower than every threshold and
+        # the divergence speed; NaN and inf fail the < test).
+        if not speed_squared < self._quiet_squared:
             status = classify(
-                result.status, qdot, speed_squared, thresholds, self._divergence_speed
+                result.status,
+                qdot,
+                speed_squared,
+                self._speed_thresholds,
+                self._divergence_speed,
+                self._speed_work if self._speed_work is not None else SpeedWork(nv),
             )
             if status is Status.NONFINITE:
-                qdot = np.zeros_like(qdot_prev)
+                qdot = np.zeros(nv)
             if status is not result.status or qdot is not result.qdot:
                 result = result._replace(qdot=qdot, status=status)
         filtered = weighted if unit else weighted / state.weight
-        return ControllerOutput(qdot, filtered, tuple(reports), result)
+        return ControllerOutput(qdot, filtered, reports, result)

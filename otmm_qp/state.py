@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -12,15 +13,62 @@ from otmm_qp.exceptions import DimensionError, NonFiniteState
 from otmm_qp.robots.robot import FloatArray, Robot
 
 _unit_weights: dict[int, FloatArray] = {}
+_dgesdd = lapack.dgesdd
+
+
+class SvdWorkspace:
+    r"""What LAPACK ``dgesdd`` needs for one Jacobian shape ``(n, m)``, allocated once.
+
+    Attributes:
+        scratch: Fortran-ordered ``(n, m)`` array the matrix is copied into and that
+            ``dgesdd`` overwrites (``overwrite_a``): the one copy of a step's SVD.
+        lwork: The optimal workspace length, queried once (``dgesdd_lwork``).
+    """
+
+    __slots__ = ("lwork", "scratch")
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        rows, columns = shape
+        self.scratch: FloatArray = np.empty(shape, order="F")
+        optimal, _ = lapack.dgesdd_lwork(rows, columns, compute_uv=1, full_matrices=0)
+        self.lwork = max(1, int(optimal))
+
+
+class _Workspaces(threading.local):
+    """Per thread (a worker may run steps in threads), one workspace per matrix shape."""
+
+    def __init__(self) -> None:
+        self.by_shape: dict[tuple[int, int], SvdWorkspace] = {}
+
+
+_workspaces = _Workspaces()
+
+
+def svd_workspace(shape: tuple[int, int]) -> SvdWorkspace:
+    """This thread's :class:`SvdWorkspace` for matrices of ``shape`` (created on first use)."""
+    cache = _workspaces.by_shape
+    workspace = cache.get(shape)
+    if workspace is None:
+        workspace = cache[shape] = SvdWorkspace(shape)
+    return workspace
 
 
 def thin_svd(matrix: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Thin SVD ``(U (n, k), σ (k,), Vᵀ (k, m))`` of a finite matrix, ``k = min(n, m)``.
 
     Calls LAPACK ``dgesdd`` directly (about half the overhead of ``numpy.linalg.svd`` on the
-    small matrices of arm Jacobians) and falls back to ``dgesvd`` if it does not converge.
+    small matrices of arm Jacobians) on a copy of ``matrix`` in this thread's Fortran-ordered
+    :class:`SvdWorkspace` (``overwrite_a``, ``lwork`` queried once per shape), and falls back
+    to ``dgesvd`` if it does not converge. ``U``, ``σ`` and ``Vᵀ`` are new arrays (the
+    caller keeps them); ``matrix`` is not modified.
     """
-    U, sigma, Vt, info = lapack.dgesdd(matrix, compute_uv=1, full_matrices=0)
+    if matrix.ndim != 2 or not matrix.size:  # nothing to reuse: LAPACK's own checks and copy
+        U, sigma, Vt, info = lapack.dgesdd(matrix, compute_uv=1, full_matrices=0)
+    else:
+        workspace = _workspaces.by_shape.get(matrix.shape) or svd_workspace(matrix.shape)
+        scratch = workspace.scratch
+        np.copyto(scratch, matrix)
+        U, sigma, Vt, info = _dgesdd(scratch, 1, 0, workspace.lwork, 1)
     if info != 0:
         U, sigma, Vt, info = lapack.dgesvd(matrix, compute_uv=1, full_matrices=0)
         if info != 0:  # only NaN/inf input gets here: report it through σ

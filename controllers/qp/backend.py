@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from otmm_qp.backends.backend import BackendOutput, damping_weight
+from otmm_qp.backends.backend import BackendOutput, damping_weight, svd_work
 from otmm_qp.limits import Box, LimitSpec, Row, make_limits, per_joint
 from otmm_qp.limits.options import LIMITS, removed_limit_keys
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -128,6 +128,7 @@ class QpBackend(BoxQpBackend):
         self._row_session: QpSession | None = make_session(solver) if self.limits.rows else None
         self._factor = self.formulation.damping
         self._posture_reference: FloatArray | None = None
+        self._work: FloatArray | None = None  # svd_work buffers, allocated by bind
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the limits; allocate the QP data written in place each step."""
@@ -140,6 +141,7 @@ class QpBackend(BoxQpBackend):
         box = self.box.bounds if self._box_in_problem else None
         self._data = QpProblem.allocate(robot.nv, box=box)
         self._row_data = QpProblem.allocate(robot.nv, len(self.limits.rows))
+        self._work = svd_work(robot)
 
     def reset(self) -> None:
         """Forget warm starts and a defaulted nominal posture."""
@@ -187,7 +189,7 @@ class QpBackend(BoxQpBackend):
         state, xdot, posture = inputs
         bounds = self.box.bounds
         if self.fast_path:
-            candidate = self.formulation.unconstrained(state, xdot, posture)
+            candidate = self.formulation.unconstrained(state, xdot, posture, self._work)
             status = self.inside_status(candidate, 1e-9)  # None outside the box or for NaN
             if status is not None:
                 return candidate, status, QpStep(bounds)

@@ -24,6 +24,7 @@ from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.state import KinematicState
 
+from ..damping import damped_least_squares
 from .solvers.problem import BIG, QpProblem
 
 __all__ = [
@@ -68,7 +69,11 @@ class QpFormulation:
         return float(np.sqrt(self.mu))
 
     def unconstrained(
-        self, state: KinematicState, xdot: FloatArray, posture: FloatArray | None
+        self,
+        state: KinematicState,
+        xdot: FloatArray,
+        posture: FloatArray | None,
+        work: FloatArray | None = None,
     ) -> FloatArray:
         r"""The minimiser of :math:`f` without bounds, from the shared SVD [rad/s], ``(nv,)``.
 
@@ -84,11 +89,12 @@ class QpFormulation:
             state: The step's kinematic state (``U``, ``sigma``, ``Vt``).
             xdot: ``ẋ_w``, shape ``(n,)``.
             posture: ``q̇_p`` [rad/s], shape ``(nv,)``, or None (no posture cost).
+            work: :func:`~otmm_qp.backends.backend.svd_work` buffers, shape ``(2, k)``, so
+                that only the returned ``q̇*`` is allocated; None: temporaries.
         """
+        if posture is None:  # DLS, from the shared SVD (μ > 0 is checked at construction)
+            return damped_least_squares(state, xdot, self.mu, work)
         sigma, Vt = state.sigma, state.Vt
-        if posture is None:
-            gains = sigma / (sigma * sigma + self.mu)
-            return np.asarray(((xdot @ state.U) * gains) @ Vt)
         mu = self.mu + self.posture_weight
         b = Vt.T @ (sigma * (state.U.T @ xdot)) + self.posture_weight * posture
         c = Vt @ b

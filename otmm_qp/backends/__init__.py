@@ -5,6 +5,7 @@ from otmm_qp.backends.backend import (
     Backend,
     BackendOutput,
     rank_cutoff,
+    svd_work,
     truncated_pseudoinverse_apply,
 )
 from otmm_qp.status import Status
@@ -15,5 +16,6 @@ __all__ = [
     "BackendOutput",
     "Status",
     "rank_cutoff",
+    "svd_work",
     "truncated_pseudoinverse_apply",
 ]

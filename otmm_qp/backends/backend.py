@@ -133,21 +133,47 @@ class Backend(abc.ABC):
         return BackendOutput(qdot, Status.OK, damping)
 
 
+def svd_work(robot: Robot) -> FloatArray:
+    """Buffers for :func:`truncated_pseudoinverse_apply` and DLS on ``robot``: shape ``(2, k)``.
+
+    ``k = min(n, nv)``, the number of singular values of the robot's task Jacobian; a backend
+    allocates them in :meth:`Backend.bind` so its step allocates only the ``q̇`` it returns.
+    """
+    return np.empty((2, min(robot.task_dim, robot.nv)))
+
+
 def truncated_pseudoinverse_apply(
-    state: KinematicState, xdot: FloatArray, rcond: float = RCOND
+    state: KinematicState, xdot: FloatArray, rcond: float = RCOND, work: FloatArray | None = None
 ) -> FloatArray:
     r"""``J_w^+ ẋ`` from the shared SVD, dropping singular values below :func:`rank_cutoff`.
 
     .. math:: \dot q = \sum_{i:\,\sigma_i > \epsilon} \frac{u_i^\top \dot x}{\sigma_i} v_i
 
     An exactly singular ``J`` thus uses only its achievable rows (the paper's case).
+
+    Args:
+        state: The step's kinematic state (``U`` (n, k), ``sigma`` (k,), ``Vt`` (k, nv)).
+        xdot: ``ẋ_w``, shape ``(n,)``.
+        rcond: Relative truncation threshold in ``[0, 1)``.
+        work: :func:`svd_work` buffers, shape ``(2, k)`` (row 0 is used); None: a temporary.
+
+    Returns:
+        ``q̇`` [rad/s], shape ``(nv,)``, a new array.
     """
     sigma = state.sigma
-    if not sigma.size:
+    k = sigma.size
+    if not k:
         return np.zeros(state.Vt.shape[1])
-    cutoff = rank_cutoff(sigma, rcond)
-    if sigma[-1] > cutoff:  # full rank: no masking needed (the common case)
-        result: FloatArray = state.Vt.T @ ((xdot @ state.U) / sigma)
+    xdot = np.asarray(xdot, dtype=float)
+    cutoff = max(rcond * float(sigma[0]), _TINY)  # rank_cutoff, inlined
+    if float(sigma[k - 1]) > cutoff:  # full rank: no masking needed (the common case)
+        # ndarray.dot into the buffer: uᵢᵀẋ, then divided by σᵢ in place, then Σ cᵢ vᵢ.
+        if work is not None and work.shape[1] == k:
+            coefficients = xdot.dot(state.U, work[0])
+        else:
+            coefficients = xdot.dot(state.U)
+        np.divide(coefficients, sigma, coefficients)
+        result: FloatArray = coefficients.dot(state.Vt)
         return result
     keep = sigma > cutoff
     coefficients = (xdot @ state.U[:, keep]) / sigma[keep]

@@ -2,6 +2,9 @@ r"""The timed pipelines, built through :mod:`otmm_qp.registry` exactly as a YAML
 
 What one *control step* is, per pipeline (everything from the configuration to ``q̇``):
 
+* the floor: the arm's kinematics, Jacobian and one ``dgesdd``, nothing else
+  (:mod:`otmm_qp.bench.floor`), the least any pipeline can cost;
+
 * otmm-qp: ``KinematicState.compute(robot, q)`` (kinematics + the one SVD) and
   ``Controller.step(state, ẋ, q̇_prev)`` (filters + backend) — the step of ``otmm-qp run``;
 * pink, mink, Drake: the public ``solve(state, ẋ, q̇_prev)`` of the registered adapter
@@ -18,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from otmm_qp import registry
+from otmm_qp.bench.floor import FLOOR, floor_step
 from otmm_qp.bench.scenarios import DT, Scenario, otmm_controller
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import OtmmError
@@ -144,13 +148,15 @@ def _adapter_step(scenario: Scenario, spec: PipelineSpec) -> StepFunction:
 
 
 def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction], list[str]]:
-    """Step functions of every pipeline that can be built, and a note for each that cannot.
+    """Step functions of the floor and of every pipeline that can be built, and notes.
 
-    A pipeline is left out, with a note, when its peer library is not installed or its
+    The floor (:mod:`otmm_qp.bench.floor`) comes first, with a note saying what it calls. A
+    pipeline is left out, with a note, when its peer library is not installed or its
     parameters are not accepted (e.g. a QP solver that is not installed).
     """
-    steps: dict[str, StepFunction] = {}
-    notes: list[str] = []
+    calls, floor = floor_step(scenario)
+    steps: dict[str, StepFunction] = {FLOOR: floor}
+    notes: list[str] = [f"{FLOOR}: {calls} on the same states, nothing else"]
     for spec in pipeline_specs(full):
         try:
             with quiet_logs():

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 STEP_DEFINITION = (
+    "floor: the robot's kinematics + Jacobian + one dgesdd, nothing else; "
     "otmm-qp: KinematicState.compute (kinematics + Jacobian + SVD) + Controller.step; "
     "pink / mink / Drake: the registered adapter's public solve(state, ẋ, q̇_prev) "
     "(the peer's configuration update, task, limits and QP / DiffIK)."
@@ -18,13 +19,14 @@ def _scenario_lines(scenario: dict[str, Any]) -> list[str]:
         f"{scenario['description']}; a joint bound was active on "
         f"{scenario['bounded_fraction']:.0%} of the recording run's steps.",
         "",
-        "| pipeline | median µs | p10 µs | p90 µs | p99 µs | × pink (daqp) |",
-        "|---|---:|---:|---:|---:|---:|",
+        "| pipeline | median µs | p10 µs | p90 µs | p99 µs | × pink (daqp) | × floor |",
+        "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for row in sorted(scenario["rows"], key=lambda r: r["median_us"]):
         lines.append(
             f"| {row['pipeline']} | {row['median_us']:.1f} | {row['p10_us']:.1f} | "
-            f"{row['p90_us']:.1f} | {row['p99_us']:.1f} | {row['ratio_to_pink_daqp']:.2f} |"
+            f"{row['p90_us']:.1f} | {row['p99_us']:.1f} | {row['ratio_to_pink_daqp']:.2f} | "
+            f"{row.get('ratio_to_floor', float('nan')):.2f} |"
         )
     if scenario["targets"]:
         lines += [

@@ -125,25 +125,29 @@ class OtmmFilter(TaskFilter):
     def apply(self, state: KinematicState, xdot: FloatArray) -> FilterOutput:
         """Apply eq. (8) to the weighted command ``xdot``, shape ``(n,)``."""
         sigma = state.sigma
-        n = state.U.shape[0]  # the task dimension (U is (n, k))
+        U = state.U
+        n = U.shape[0]  # the task dimension (U is (n, k))
+        sigma_s = self.sigma_s
         if sigma.size == n:
-            sigma_min = float(sigma[-1])
-            if sigma_min > self.sigma_s:
+            sigma_min = float(sigma[n - 1])
+            if sigma_min > sigma_s:
                 return FilterOutput(xdot, FilterReport(False, sigma_min, 0.0, 0.0))
-            U = state.U
         else:
             sigma_min = 0.0
             U, sigma = _full_left_basis(state)
         # σ is sorted descending, so the filtered ones are a tail of length k.
         k = 1
         if self.corank != 1:
-            while k < n and sigma[n - 1 - k] <= self.sigma_s:
+            values = sigma.tolist()  # Python floats: no NumPy scalar per comparison
+            while k < n and values[n - 1 - k] <= sigma_s:
                 k += 1
         if k == 1:  # the paper's case, with scalars only
             u_s = U[:, n - 1]
             p = self.p(sigma_min)
             removed_along = p * float(u_s.dot(xdot))  # p (u_sᵀẋ)
-            modified = xdot - removed_along * u_s
+            # ẋ − r u_s as ẋ + (−r) u_s (the same rounding), in the one new array returned.
+            modified = np.multiply(u_s, -removed_along)
+            np.add(xdot, modified, modified)
             return FilterOutput(modified, FilterReport(True, sigma_min, p, abs(removed_along)))
         basis = U[:, n - k :]  # (n, k) the u_i filtered
         p_values = np.array([self.p(float(s)) for s in sigma[n - k :]])  # (k,)

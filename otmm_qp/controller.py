@@ -172,6 +172,10 @@ class Controller:
             if status is Status.NONFINITE:
                 qdot = np.zeros(nv)
             if status is not result.status or qdot is not result.qdot:
-                result = result._replace(qdot=qdot, status=status)
+                result = (
+                    BackendOutput(qdot, status, result.damping, result.scale, result.details)
+                    if type(result) is BackendOutput  # a third of _replace's cost
+                    else result._replace(qdot=qdot, status=status)
+                )
         filtered = weighted if unit else weighted / state.weight
         return ControllerOutput(qdot, filtered, reports, result)

@@ -17,12 +17,18 @@ _dgesdd = lapack.dgesdd
 
 
 class SvdWorkspace:
-    r"""What LAPACK ``dgesdd`` needs for one Jacobian shape ``(n, m)``, allocated once.
+    r"""What LAPACK ``dgesdd`` needs for one Jacobian shape ``(n, m)``, set up once per thread.
 
     Attributes:
         scratch: Fortran-ordered ``(n, m)`` array the matrix is copied into and that
-            ``dgesdd`` overwrites (``overwrite_a``): the one copy of a step's SVD.
-        lwork: The optimal workspace length, queried once (``dgesdd_lwork``).
+            ``dgesdd`` overwrites (``overwrite_a``): the step's one copy of the matrix.
+        lwork: The workspace length, computed once:
+            :math:`4k^2 + \max(n, m) + 9k`, ``k = min(n, m)`` (LAPACK's requirement for the
+            thin SVD with vectors, the length scipy's wrapper uses by default). scipy's wrapper
+            allocates ``work`` on every call whatever its length, and the blocked code paths a
+            larger ("optimal", ``dgesdd_lwork``: 434 for 6 × 7) workspace enables start at
+            sizes far above an arm's Jacobian, so the smallest valid length is the cheapest
+            and keeps LAPACK on the path (and the rounding) of every earlier release.
     """
 
     __slots__ = ("lwork", "scratch")
@@ -30,8 +36,8 @@ class SvdWorkspace:
     def __init__(self, shape: tuple[int, int]) -> None:
         rows, columns = shape
         self.scratch: FloatArray = np.empty(shape, order="F")
-        optimal, _ = lapack.dgesdd_lwork(rows, columns, compute_uv=1, full_matrices=0)
-        self.lwork = max(1, int(optimal))
+        k = min(rows, columns)
+        self.lwork = max(4 * k * k + max(rows, columns) + 9 * k, 1)
 
 
 class _Workspaces(threading.local):
@@ -58,7 +64,7 @@ def thin_svd(matrix: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
 
     Calls LAPACK ``dgesdd`` directly (about half the overhead of ``numpy.linalg.svd`` on the
     small matrices of arm Jacobians) on a copy of ``matrix`` in this thread's Fortran-ordered
-    :class:`SvdWorkspace` (``overwrite_a``, ``lwork`` queried once per shape), and falls back
+    :class:`SvdWorkspace` (``overwrite_a``, ``lwork`` computed once per shape), and falls back
     to ``dgesvd`` if it does not converge. ``U``, ``σ`` and ``Vᵀ`` are new arrays (the
     caller keeps them); ``matrix`` is not modified.
     """

@@ -4,8 +4,12 @@ applied by the controller): `saturated` for every backend that does not enforce 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.controller import Controller
@@ -14,9 +18,11 @@ from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
 from otmm_qp.status import (
     DIVERGENCE_SPEED,
+    SpeedWork,
     Status,
     classify,
     exceeds_speed_limits,
+    quiet_speed_squared,
     speed_limit_thresholds,
 )
 from otmm_qp_controllers.dls import DampedLeastSquaresBackend
@@ -249,3 +255,78 @@ experiments:
     assert speed.max() > 1.5  # the circle needs more than 1.5 rad/s somewhere
     np.testing.assert_array_equal(run.result.status == Status.DIVERGING, speed > 1.5)
     assert run.metrics["blow_up"]
+
+
+_speeds = st.floats(-1e3, 1e3, allow_nan=False)
+
+
+@given(
+    st.lists(st.floats(0.1, 10.0), min_size=1, max_size=8),
+    st.lists(_speeds, min_size=8, max_size=8),
+    st.sampled_from([1e-12, 1e-9, 1e-7, 1e-6, 1e-3, 0.5, 1.0]),
+    st.floats(1.0, 200.0),
+    st.booleans(),
+)
+def test_below_the_quiet_speed_classify_keeps_the_status(
+    limits: list[float], raw: list[float], closeness: float, divergence: float, limited: bool
+) -> None:
+    """The controller skips classify when ‖q̇‖² < quiet_speed_squared: exact, never a miss.
+
+    Speeds are drawn at and around the thresholds (relative offsets down to 1e-12), so a
+    rounding slip of the 2-norm bound would show as a skipped ``saturated`` or ``diverging``.
+    """
+    thresholds = speed_limit_thresholds(np.array(limits)) if limited else None
+    nv = len(limits)
+    floor = min(limits) * (1.0 + 1e-9)
+    qdot = np.array(raw[:nv]) * 1e-3
+    qdot[0] = floor * (1.0 - closeness) if raw[0] >= 0 else -floor * (1.0 + closeness)
+    speed_squared = float(qdot.dot(qdot))
+    quiet = quiet_speed_squared(thresholds, divergence)
+    work = SpeedWork(nv)
+    for status in (Status.OK, Status.BOUNDED):
+        classified = classify(status, qdot, speed_squared, thresholds, divergence, work)
+        assert classified == classify(status, qdot, speed_squared, thresholds, divergence)
+        if speed_squared < quiet:
+            assert classified is status
+
+
+def test_speed_work_gives_the_same_answers_as_temporaries() -> None:
+    thresholds = speed_limit_thresholds(np.array([2.0, np.inf, 1.0]))
+    work = SpeedWork(3)
+    for qdot in ([2.0, 1e9, 1.0], [-2.0 * (1 + 1e-8), 0.0, 0.0], [0.0, 0.0, -1.1], [np.nan] * 3):
+        array = np.array(qdot)
+        assert exceeds_speed_limits(array, thresholds, work) == exceeds_speed_limits(
+            array, thresholds
+        )
+    assert quiet_speed_squared(None, 100.0) == 1e4
+    assert quiet_speed_squared(thresholds, math.inf) == pytest.approx(1.0, rel=1e-5)
+    assert quiet_speed_squared(thresholds, math.inf) < 1.0  # strictly below the smallest limit
+
+
+@pytest.mark.parametrize("enforces", [False, True])
+def test_controller_status_is_classify_at_the_thresholds(enforces: bool) -> None:
+    """Controller.step (which skips classify below the quiet speed) agrees with classify."""
+
+    class Echo(Backend):
+        enforces_limits = enforces
+        given = np.zeros(2)
+
+        def solve(
+            self, state: KinematicState, xdot: np.ndarray, qdot_prev: np.ndarray
+        ) -> BackendOutput:
+            return BackendOutput(self.given.copy(), Status.OK)
+
+    backend = Echo()
+    controller = Controller("echo", [], backend, divergence_speed=3.0)
+    controller.bind(LIMITED, DT)  # speed limits 2 rad/s
+    state = KinematicState.compute(LIMITED, np.array([0.3, 1.2]))
+    thresholds = None if enforces else speed_limit_thresholds(LIMITED.velocity_limits)
+    edge = 2.0 * (1.0 + 1e-9)
+    for first in (0.0, 1.0, 2.0, edge, np.nextafter(edge, 3.0), 2.9, 3.0, 3.0 + 1e-12, np.inf):
+        for second in (0.0, -1.0, -2.5):
+            backend.given = np.array([first, second])
+            out = step(controller, state, np.zeros(2))
+            qdot = backend.given
+            expected = classify(Status.OK, qdot, float(qdot.dot(qdot)), thresholds, 3.0)
+            assert out.status == expected, (first, second, out.status, expected)
+            assert np.all(np.isfinite(out.qdot))

@@ -5,10 +5,10 @@ r"""The floor of one control step: the arm's kinematics, its Jacobian and one LA
 nothing else: no checks, no task weight, no filter, no backend. For a Pinocchio arm it is
 Pinocchio's own calls (``forwardKinematics``, ``updateFramePlacement``,
 ``computeFrameJacobian``) and ``dgesdd`` (``scipy.linalg.lapack``, thin, ``overwrite_a``, the
-optimal ``lwork`` queried once) on the Jacobian Pinocchio returns; for any other robot (the
-planar arm) its :meth:`~otmm_qp.robots.Robot.kinematics` and the same ``dgesdd``. Every
-pipeline needs at least this much per step, so its ratio to the floor is the cost of
-everything otmm-qp (or a peer) adds around it.
+``lwork`` of :class:`~otmm_qp.state.SvdWorkspace`) on the Jacobian Pinocchio returns; for any
+other robot (the planar arm) its :meth:`~otmm_qp.robots.Robot.kinematics` and the same
+``dgesdd``. Every pipeline needs at least this much per step, so its ratio to the floor is the
+cost of everything otmm-qp (or a peer) adds around it.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from scipy.linalg import lapack
 from otmm_qp.bench.scenarios import Scenario
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.state import SvdWorkspace
 
 #: Row label of the floor in the bench tables.
 FLOOR = "floor (FK + Jacobian + dgesdd)"
@@ -30,8 +31,7 @@ def floor_step(scenario: Scenario) -> tuple[str, Callable[[int], None]]:
     """The floor's step function on ``scenario``'s states, and what it calls (one line)."""
     robot, configurations = scenario.robot, scenario.q
     rows, nv = robot.task_dim, robot.nv
-    optimal, _ = lapack.dgesdd_lwork(rows, nv, compute_uv=1, full_matrices=0)
-    lwork = max(1, int(optimal))
+    lwork = SvdWorkspace((rows, nv)).lwork  # the length KinematicState's SVD uses
     dgesdd = lapack.dgesdd
     if isinstance(robot, PinocchioArm):
         model, data, frame = robot.model, robot.data, robot.frame_id

@@ -44,12 +44,14 @@ class PositionLimit(Limit):
         nv = robot.nv
         self._theta: FloatArray = np.array(robot.position_limits, dtype=float).reshape(2, nv)
         self._rate = self.gain / dt
-        self._scratch: FloatArray = np.empty((2, nv))
+        # Row views made once: a per-step (2, nv) − (nv,) broadcast allocates an iterator.
+        self._theta_min, self._theta_max = self._theta[0], self._theta[1]
 
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:
         """``((g/dt)(θ_min − θ), (g/dt)(θ_max − θ))`` [rad/s] into ``out``."""
-        scratch = self._scratch
-        np.subtract(self._theta, theta, out=scratch)
-        np.multiply(self._rate, scratch[0], out=out.lower)
-        np.multiply(self._rate, scratch[1], out=out.upper)
+        rate = self._rate
+        np.subtract(self._theta_min, theta, out.lower)
+        np.multiply(out.lower, rate, out.lower)
+        np.subtract(self._theta_max, theta, out.upper)
+        np.multiply(out.upper, rate, out.upper)
         return out

@@ -73,7 +73,7 @@ def thin_svd(matrix: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     else:
         workspace = _workspaces.by_shape.get(matrix.shape) or svd_workspace(matrix.shape)
         scratch = workspace.scratch
-        np.copyto(scratch, matrix)
+        scratch[...] = matrix  # setitem: the copy without np.copyto's dispatch
         U, sigma, Vt, info = _dgesdd(scratch, 1, 0, workspace.lwork, 1)
     if info != 0:
         U, sigma, Vt, info = lapack.dgesvd(matrix, compute_uv=1, full_matrices=0)

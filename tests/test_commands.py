@@ -58,9 +58,13 @@ def _check_bench_output(out: Path, scenarios: int) -> dict[str, object]:
         rows = {row["pipeline"]: row for row in scenario["rows"]}
         assert "otmm+qp (daqp, persistent, QP every step)" in rows
         assert all(row["median_us"] > 0 for row in rows.values())
+        floor = rows["floor (FK + Jacobian + dgesdd)"]  # timed in the same blocks
+        assert floor["ratio_to_floor"] == 1.0 and floor["library"] == "floor"
+        for row in rows.values():
+            assert row["ratio_to_floor"] == pytest.approx(row["median_us"] / floor["median_us"])
         if "pink (daqp)" in rows:
             assert rows["pink (daqp)"]["ratio_to_pink_daqp"] == pytest.approx(1.0)
-    assert "| pipeline | median µs" in (out / "bench.md").read_text()
+    assert "| × pink (daqp) | × floor |" in (out / "bench.md").read_text()
     return result
 
 

@@ -170,7 +170,7 @@ class QpBackend(BoxQpBackend):
         session = self._row_session
         if session is not None and status in (Status.OK, Status.BOUNDED):
             qdot, status, record = self._enforce_rows(inputs, session, qdot, status)
-        return BackendOutput(qdot, status, self._factor, details=record)
+        return BackendOutput(qdot, status, self._factor, 1.0, record)  # positional: cheaper
 
     def _empty_box(self, inputs: StepInputs) -> BackendOutput:
         """The policy's answer to an empty box (``raise`` carries the step's QP)."""

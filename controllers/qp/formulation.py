@@ -137,10 +137,11 @@ def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | Non
         if not low <= value <= high:  # also for NaN
             return None
         # An infinite bound is never active (inf ≤ τ(1 + inf) would say it is).
-        if (value - low <= tol * (1.0 + abs(low)) and low != -math.inf) or (
-            high - value <= tol * (1.0 + abs(high)) and high != math.inf
+        if not active and (
+            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
         ):
-            active = True
+            active = True  # later joints need only the inside test
     return active
 
 

@@ -24,7 +24,7 @@ from otmm_qp.runner import interrupt  # noqa: E402
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name.
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "migrate")
 
 
 def _command(name: str) -> ModuleType:

@@ -9,6 +9,20 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+#: Longest value shown in an error line [characters] (:func:`shown`).
+SHOWN_LIMIT = 40
+
+
+def shown(value: object, limit: int = SHOWN_LIMIT, *, quote: bool = True) -> str:
+    """A value for an error line: its ``repr`` (or ``str`` with ``quote=False``), cut to ``limit``.
+
+    A 10,000-character value becomes its first ``limit − 1`` characters and ``…``, so every
+    error stays one short line.
+    """
+    text = repr(value) if quote else str(value)
+    text = text.replace("\n", " ").replace("\r", " ")
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
 
 class OtmmError(Exception):
     """Root of all otmm-qp errors."""

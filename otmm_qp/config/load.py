@@ -14,6 +14,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from otmm_qp.config.schema import SuiteConfig
+from otmm_qp.config.versions import VERSION_KEY, check_schema
 from otmm_qp.config.yaml_loader import load_yaml
 from otmm_qp.exceptions import ConfigError
 
@@ -43,11 +44,18 @@ def _shown(value: Any) -> str:
 def parse(model: type[Model], data: Any, source: str) -> Model:
     """Validate already-parsed YAML data as ``model``.
 
+    The file's ``version`` and every key that is gone or changed meaning since it are checked
+    first (:func:`~otmm_qp.config.versions.check_schema`: run files may be of schema 1, study
+    files of schema 2 or later); ``version`` is not part of the record.
+
     Raises:
-        ConfigError: ``SOURCE: FIELD.PATH: what is wrong[, got VALUE]`` for the first error.
+        ConfigError: ``SOURCE: FIELD.PATH: what is wrong[, got VALUE]`` for the first error,
+            or one line listing every key of an older schema.
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
+    check_schema(data, source, first_version=1 if issubclass(model, SuiteConfig) else 2)
+    data = {key: value for key, value in data.items() if key != VERSION_KEY}
     try:
         return model.model_validate(data)
     except ValidationError as error:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution, conflicting_bounds
@@ -15,6 +16,8 @@ SETTINGS = {
 }  # fmt: skip
 #: OSQP ``status_val`` of "solved" and "solved inaccurate".
 _SOLVED = (1, 2)
+#: OSQP's status when its own SIGINT handler caught Ctrl-C (``SolverStatus.OSQP_SIGINT``).
+_INTERRUPTED = 10
 
 
 class OsqpSession(QpSession):
@@ -77,7 +80,9 @@ class OsqpSession(QpSession):
         """Solve; found when OSQP reports solved (or solved inaccurate)."""
         if self._refused is not None:
             return Solution(None, False, self._refused)
-        result = self._solver.solve(raise_error=False)
+        with sigint_held() as held:  # OSQP's own SIGINT handler would swallow Ctrl-C
+            result = self._solver.solve(raise_error=False)
+            held.swallowed = int(result.info.status_val) == _INTERRUPTED
         status = int(result.info.status_val)
         if status not in _SOLVED:
             return Solution(None, False, str(result.info.status))

@@ -16,12 +16,30 @@ SHOWN_LIMIT = 40
 def shown(value: object, limit: int = SHOWN_LIMIT, *, quote: bool = True) -> str:
     """A value for an error line: its ``repr`` (or ``str`` with ``quote=False``), cut to ``limit``.
 
-    A 10,000-character value becomes its first ``limit − 1`` characters and ``…``, so every
+    A 10,000-character value becomes its first ``limit − 3`` characters and ``...``, so every
     error stays one short line.
     """
     text = repr(value) if quote else str(value)
     text = text.replace("\n", " ").replace("\r", " ")
-    return text if len(text) <= limit else text[: limit - 1] + "…"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: Longest unbroken run of characters an error line keeps (a value, a path) [characters].
+WORD_LIMIT = 60
+
+
+def one_line(message: str) -> str:
+    """An error message as the CLI prints it: one line, every long value cut.
+
+    Line breaks become spaces and every run of more than :data:`WORD_LIMIT` characters without
+    a space (a 10,000-character ``--episode`` or plugin name) keeps its start and its end
+    around ``...`` (so a long file path still ends in its name and ``:``), so whatever produced
+    the message, the line stays readable.
+    """
+    head = (WORD_LIMIT - 3) // 2
+    tail = WORD_LIMIT - 3 - head
+    words = " ".join(message.split()).split(" ")
+    return " ".join(w if len(w) <= WORD_LIMIT else f"{w[:head]}...{w[-tail:]}" for w in words)
 
 
 class OtmmError(Exception):

@@ -93,7 +93,10 @@ def _finite_number(value: object) -> bool:
     """A real number (not a bool) that is neither NaN nor ±inf."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
         return False
-    return math.isfinite(float(value))
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an integer beyond the float range (10**400)
+        return False
 
 
 class Interval(Constraint):

@@ -215,6 +215,31 @@ class InfeasibleProblem(OtmmError):
         super().__init__(f"infeasible QP{where}: {detail}")
 
 
+class SolverNotConverged(OtmmError):
+    """A QP solver stopped before converging (iteration or time limit) and the policy is ``raise``.
+
+    Not :class:`InfeasibleProblem`: the problem may well be feasible (``qp_scaled``'s always is,
+    with ``q̇ = 0, α = 0``); the solver did not find its solution. Raised by a backend without
+    the step index; the simulation loop states it (``QP solver did not converge at step k``).
+
+    Attributes:
+        step: Index of the control step, or None where unknown (raised by a backend).
+        detail: The solver's status and what it was solving.
+        problem: The QP of the step, or None.
+        solution: The solver's answer (its last iterate, when it returns one).
+    """
+
+    def __init__(
+        self, step: int | None, detail: str, problem: object = None, solution: object = None
+    ) -> None:
+        self.step = step
+        self.detail = detail
+        self.problem = problem
+        self.solution = solution
+        where = "" if step is None else f" at step {step}"
+        super().__init__(f"QP solver did not converge{where}: {detail}")
+
+
 class PeerUnavailable(OtmmError):
     """An optional peer library (pink, mink, drake) is not installed.
 

@@ -28,6 +28,7 @@ from otmm_qp.exceptions import (
     PeerUnavailable,
     PluginNotFound,
     PluginValidationError,
+    shown,
 )
 
 ROBOTS = "otmm_qp.robots"
@@ -233,11 +234,6 @@ def check_parameters(
             )
 
 
-def _shown(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def blame_parameter(
     factory: Callable[..., Any], params: Mapping[str, Any]
 ) -> tuple[str, str] | None:
@@ -277,7 +273,7 @@ def blame_parameter(
             where = "".join(f"[{p}]" for p in first["loc"] if isinstance(p, int))
             message = str(first["msg"]).split(",")[0]
             message = message[:1].lower() + message[1:]
-            return (f"{key}{where}", f"{message}, got {_shown(first.get('input', value))}")
+            return (f"{key}{where}", f"{message}, got {shown(first.get('input', value))}")
         except Exception:  # noqa: BLE001 - arbitrary types: not checkable
             continue
     return None

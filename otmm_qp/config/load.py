@@ -16,7 +16,7 @@ from pydantic import BaseModel, ValidationError
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.config.versions import VERSION_KEY, check_schema
 from otmm_qp.config.yaml_loader import load_yaml
-from otmm_qp.exceptions import ConfigError
+from otmm_qp.exceptions import ConfigError, shown
 
 #: Longest value shown in an error message [characters].
 MESSAGE_VALUE_LIMIT = 80
@@ -34,11 +34,6 @@ def embedded_config_path(name: str = DEFAULT_CONFIG) -> Path:
 
 def _field_path(location: tuple[int | str, ...]) -> str:
     return ".".join(str(part) for part in location)
-
-
-def _shown(value: Any) -> str:
-    shown = repr(value)
-    return shown if len(shown) <= MESSAGE_VALUE_LIMIT else shown[: MESSAGE_VALUE_LIMIT - 3] + "..."
 
 
 def parse(model: type[Model], data: Any, source: str) -> Model:
@@ -65,7 +60,7 @@ def parse(model: type[Model], data: Any, source: str) -> Model:
         if first["type"] == "extra_forbidden":
             message = "unknown key"
         elif first["type"] in ("literal_error", "finite_number", "string_pattern_mismatch"):
-            message = f"{message}, got {_shown(first.get('input'))}"
+            message = f"{message}, got {shown(first.get('input'), MESSAGE_VALUE_LIMIT)}"
         raise ConfigError(f"{source}: {path}" if path else source, message) from None
 
 

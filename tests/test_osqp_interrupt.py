@@ -40,6 +40,46 @@ PROBE = textwrap.dedent(
 )
 
 
+REFERENCE = textwrap.dedent(
+    """
+    import os, signal, sys, threading, time
+    import numpy as np
+    import otmm_qp.reference.sqp as sqp
+    # Every OSQP solve of the reference made long, so the signal lands inside one.
+    sqp.OSQP_SETTINGS.update(eps_abs=1e-12, eps_rel=1e-12, max_iter=200000)
+    from otmm_qp.reference import ReferenceSettings, solve_reference
+    from otmm_qp.robots.pinocchio_arm import PinocchioArm
+    from otmm_qp.runner import interrupt
+    from otmm_qp.trajectories.line import QuinticLineTrajectory
+
+    robot = PinocchioArm(name="panda", task="position")
+    q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+    start = robot.forward(robot.configuration(q0))
+    line = QuinticLineTrajectory(start, (start + np.array([0.5, 0.3, 0.2])).tolist(), 3.0)
+    threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+    try:
+        with interrupt.handle_stop_signals():
+            result, _ = solve_reference(
+                robot, line, q0, 0.005, 4.0, ReferenceSettings(time_budget=20.0)
+            )
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+        sys.exit(130)
+    print(f"not interrupted: reference {result.status}", flush=True)
+    """
+)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_sigint_during_the_offline_reference_is_not_a_failed_reference() -> None:
+    """Before: OSQP ate the Ctrl-C, the solve ended ``failed`` and the study went on."""
+    done = subprocess.run(
+        [sys.executable, "-c", REFERENCE], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 130, done.stdout + done.stderr
+    assert done.stdout.strip().endswith("interrupted") and "not interrupted" not in done.stdout
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_sigint_during_an_osqp_solve_raises_keyboard_interrupt() -> None:
     done = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=60)

@@ -86,6 +86,35 @@ def test_shipped_run_config_runs_identically_after_migrate(name: str, tmp_path: 
         assert runs and all(len(rows) == STEPS + 1 for rows in runs.values())
 
 
+RELEASE_0_1 = DATA / "configs_0.1.0"
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["paper.yaml", *(f"arms/{p.name}" for p in sorted((RELEASE_0_1 / "arms").glob("*.yaml")))],
+)
+def test_release_0_1_configs_migrate_to_their_numbers(name: str, tmp_path: Path) -> None:
+    """0.1.0's shipped files (qp ``damping`` = μ, pose_circle at constant speed) are refused
+    unmigrated and, migrated, give the numbers 0.1.0 meant: 5638e52's (whose shipped files
+    were converted by hand to ``regularization``), except the pose circle, now explicitly
+    ``profile: constant`` where 5638e52's file ran the quintic default."""
+    original = RELEASE_0_1 / name  # (0.1.0's paper.yaml is 5638e52's, tested above)
+    with pytest.raises(ConfigError, match="meant"):
+        load_config(original)
+    migrated = tmp_path / "migrated.yaml"
+    assert main(["migrate", str(original), "-o", str(migrated)]) == 0
+    data = yaml.safe_load(migrated.read_text())
+    short = tmp_path / "short.yaml"
+    short.write_text(yaml.safe_dump(_shortened(data), sort_keys=False))
+    runs = _run(short, tmp_path / "out")
+    golden = {path: rows[: STEPS + 1] for path, rows in GOLDEN[name].items()}
+    if name == "arms/joint_limits.yaml":
+        assert data["experiments"][0]["trajectory"]["profile"] == "constant"
+        assert runs.keys() == golden.keys() and runs != golden  # 0.1.0's circle, not 5638e52's
+    else:
+        assert runs == golden
+
+
 @pytest.mark.parametrize("name", STUDY_FILES)
 def test_shipped_study_file_is_unchanged_by_migrate(name: str, tmp_path: Path) -> None:
     """Study files came in schema 2: never refused, migrated to the same record (same study id)."""
@@ -240,3 +269,5 @@ def test_list_params_says_what_damping_means(capsys: pytest.CaptureFixture[str])
 def test_parse_study_accepts_version() -> None:
     data = yaml.safe_load((SNAPSHOT / "studies" / "planar.yaml").read_text())
     assert parse_study({**data, "version": 2}).model_dump() == parse_study(data).model_dump()
+    with pytest.raises(ConfigError, match="starts at schema 2"):
+        parse_study({**data, "version": 1})

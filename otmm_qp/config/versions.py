@@ -230,6 +230,12 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
     if not isinstance(data, dict):
         return
     stated = file_version(data, source)
+    if stated is not None and stated < first_version:
+        raise ConfigError(
+            f"{source}: {VERSION_KEY}",
+            f"this kind of file starts at schema {first_version} "
+            f"({RELEASES[first_version]}), got {stated}",
+        )
     version = first_version if stated is None else stated
     pending = _pending(data, version)
     if not pending:

@@ -91,7 +91,7 @@ RELEASE_0_1 = DATA / "configs_0.1.0"
 
 @pytest.mark.parametrize(
     "name",
-    ["paper.yaml", *(f"arms/{p.name}" for p in sorted((RELEASE_0_1 / "arms").glob("*.yaml")))],
+    [f"arms/{p.name}" for p in sorted((RELEASE_0_1 / "arms").glob("*.yaml"))],
 )
 def test_release_0_1_configs_migrate_to_their_numbers(name: str, tmp_path: Path) -> None:
     """0.1.0's shipped files (qp ``damping`` = μ, pose_circle at constant speed) are refused

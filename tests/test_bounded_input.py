@@ -86,3 +86,21 @@ def test_error_lines_cut_long_values(capsys: pytest.CaptureFixture[str]) -> None
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and len(err) < 200, len(err)
     assert one_line("a\nb " + "y" * 500 + "z:") == "a b " + "y" * 28 + "..." + "y" * 27 + "z:"
+
+
+def test_mujoco_substeps_count_against_max_steps(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """500 control steps × 200 MuJoCo steps each are 100,000 plant steps, not 500."""
+    pytest.importorskip("mujoco")
+    config = tmp_path / "run.yaml"
+    plant = "{type: mujoco, timestep: 1.0e-4, effort_limit: 50.0}"
+    text = RUN.replace("PLANT", plant).replace("CONDITIONING", "[]")
+    config.write_text(text.replace("version: 2\n", "version: 2\nmax_steps: 2000\n"))
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert (
+        "plant: 500 control steps × 200 plant steps per period = 1e+05 exceeds max_steps = 2000"
+        in err
+    )

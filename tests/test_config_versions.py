@@ -146,12 +146,14 @@ def test_refusal_lists_every_older_key_with_the_users_values() -> None:
     with pytest.raises(ConfigError) as info:
         check_schema(OLD_RUN, "old.yaml")
     message = str(info.value)
-    assert "\n" not in message and message.startswith("old.yaml: 5 key(s) from an older schema")
+    assert "\n" not in message and message.startswith("old.yaml: 6 key(s) from an older schema")
     controllers = "experiments.0.controllers"
     for key, value, sqrt in (("0", "2.5e-05", "0.005"), ("1", "4e-06", "0.002")):
         assert f"{controllers}.{key}.backend.damping: {value} meant μ" in message
         assert f"write regularization: {value} or damping: {sqrt} (λ = √μ)" in message
     assert f"{controllers}.2.backend.damping: 9e-06 meant μ" in message
+    assert f"{controllers}.2.backend.limits: (absent) meant absent or true: mink's own" in message
+    assert "write limits: [{type: velocity}, {type: position, gain: 0.95}]" in message
     assert f"{controllers}.0.backend.limit_gain: removed" in message
     assert "limits: [{type: position, gain: 0.3}]" in message and " G" not in message
     assert "experiments.0.trajectory.profile: (absent) meant constant speed" in message
@@ -185,6 +187,11 @@ def test_migrate_converts_value_by_value_and_the_result_loads() -> None:
         "limits": [{"type": "position", "gain": 0.3}],
     }
     assert backends[1] == {"type": "pink", "regularization": 4.0e-6}
+    assert backends[2] == {
+        "type": "mink",
+        "regularization": 9.0e-6,
+        "limits": [{"type": "velocity"}, {"type": "position", "gain": 0.95}],
+    }
     assert len(migration.changes) == 4
     suite = parse_config(migration.data, "migrated")
     assert suite.experiments[0].controllers[0].backend.params["regularization"] == 2.5e-5

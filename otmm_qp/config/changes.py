@@ -16,6 +16,10 @@ value  ``damping`` (qp, pink,    1 → 2         μ, the QP's Tikhonov weight (�
        mink)                                   damping factor; μ is ``regularization``
 value  ``profile`` absent        1 → 2         constant speed → quintic (rest to rest), the end
        (pose_circle)                           pose held after ``turns·period``
+value  ``limits`` absent or true 1 → 2         mink's ConfigurationLimit gain 0.95 → gain 0.5
+       (mink)
+value  ``limits`` absent         1 → 2         Drake's position limits outright (gain 1) →
+       (drake)                                 gain 0.5
 name   ``limit_gain``,           2             one ``limits: [...]`` list
        ``acceleration_limit``,
        ``singularity_barrier``,
@@ -166,6 +170,16 @@ def _solver_name(block: Block) -> Block:
     return {**block, "solver": new} if new is not None else dict(block)
 
 
+def _explicit_limits(gain: float) -> Callable[[Block], Block]:
+    """The converter writing a peer's schema-1 limits as the list: speed and position ``gain``."""
+
+    def convert(block: Block) -> Block:
+        entries = [{"type": "velocity"}, {"type": "position", "gain": gain}]
+        return {**block, "limits": entries}
+
+    return convert
+
+
 _QP_LIMITS = ("qp", "qp_scaled", "qp_manipulability")
 _PEERS = ("pink", "mink", "drake")
 
@@ -209,6 +223,30 @@ CHANGES: tuple[SchemaChange, ...] = (
         lambda block: {**block, "profile": "constant"},
         applies=lambda block: "profile" not in block,
         also=lambda block: "profile: quintic (the current default)",
+    ),
+    SchemaChange(
+        2,
+        "backends",
+        ("mink",),
+        "limits",
+        "value",
+        "absent or true: mink's own ConfigurationLimit gain 0.95 and the speed limits",
+        "absent or true: the default set, position gain 0.5 and the speed limits",
+        _explicit_limits(0.95),
+        applies=lambda block: block.get("limits", True) is True,
+        also=lambda block: "limits: true (the current default, gain 0.5)",
+    ),
+    SchemaChange(
+        2,
+        "backends",
+        ("drake",),
+        "limits",
+        "value",
+        "absent: Drake held the joints inside their position limits outright (gain 1)",
+        "absent: the default set, position gain 0.5 and the speed limits",
+        _explicit_limits(1.0),
+        applies=lambda block: "limits" not in block,
+        also=lambda block: "limits: true (the current default, gain 0.5)",
     ),
     _limit_change("limit_gain", _QP_LIMITS + _PEERS),
     _limit_change("acceleration_limit", _QP_LIMITS),

@@ -18,13 +18,13 @@ from otmm_qp.blas_threads import prefer_single_threaded_blas
 
 prefer_single_threaded_blas()  # before anything imports NumPy (see otmm_qp.blas_threads)
 
-from otmm_qp.exceptions import OtmmError  # noqa: E402
+from otmm_qp.exceptions import OtmmError, one_line  # noqa: E402
 from otmm_qp.runner import interrupt  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name.
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "migrate")
 
 
 def _command(name: str) -> ModuleType:
@@ -60,7 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 interrupt.check()  # a stop request Python swallowed still counts
             return status
     except OtmmError as error:
-        print(f"otmm-qp: error: {error}", file=sys.stderr)
+        print(f"otmm-qp: error: {one_line(str(error))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("otmm-qp: interrupted", file=sys.stderr)

@@ -9,6 +9,38 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+#: Longest value shown in an error line [characters] (:func:`shown`).
+SHOWN_LIMIT = 40
+
+
+def shown(value: object, limit: int = SHOWN_LIMIT, *, quote: bool = True) -> str:
+    """A value for an error line: its ``repr`` (or ``str`` with ``quote=False``), cut to ``limit``.
+
+    A 10,000-character value becomes its first ``limit − 3`` characters and ``...``, so every
+    error stays one short line.
+    """
+    text = repr(value) if quote else str(value)
+    text = text.replace("\n", " ").replace("\r", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+#: Longest unbroken run of characters an error line keeps (a value, a path) [characters].
+WORD_LIMIT = 60
+
+
+def one_line(message: str) -> str:
+    """An error message as the CLI prints it: one line, every long value cut.
+
+    Line breaks become spaces and every run of more than :data:`WORD_LIMIT` characters without
+    a space (a 10,000-character ``--episode`` or plugin name) keeps its start and its end
+    around ``...`` (so a long file path still ends in its name and ``:``), so whatever produced
+    the message, the line stays readable.
+    """
+    head = (WORD_LIMIT - 3) // 2
+    tail = WORD_LIMIT - 3 - head
+    words = " ".join(message.split()).split(" ")
+    return " ".join(w if len(w) <= WORD_LIMIT else f"{w[:head]}...{w[-tail:]}" for w in words)
+
 
 class OtmmError(Exception):
     """Root of all otmm-qp errors."""
@@ -181,6 +213,31 @@ class InfeasibleProblem(OtmmError):
         self.solution = solution
         where = "" if step is None else f" at step {step}"
         super().__init__(f"infeasible QP{where}: {detail}")
+
+
+class SolverNotConverged(OtmmError):
+    """A QP solver stopped before converging (iteration or time limit) and the policy is ``raise``.
+
+    Not :class:`InfeasibleProblem`: the problem may well be feasible (``qp_scaled``'s always is,
+    with ``q̇ = 0, α = 0``); the solver did not find its solution. Raised by a backend without
+    the step index; the simulation loop states it (``QP solver did not converge at step k``).
+
+    Attributes:
+        step: Index of the control step, or None where unknown (raised by a backend).
+        detail: The solver's status and what it was solving.
+        problem: The QP of the step, or None.
+        solution: The solver's answer (its last iterate, when it returns one).
+    """
+
+    def __init__(
+        self, step: int | None, detail: str, problem: object = None, solution: object = None
+    ) -> None:
+        self.step = step
+        self.detail = detail
+        self.problem = problem
+        self.solution = solution
+        where = "" if step is None else f" at step {step}"
+        super().__init__(f"QP solver did not converge{where}: {detail}")
 
 
 class PeerUnavailable(OtmmError):

@@ -28,6 +28,7 @@ from otmm_qp.exceptions import (
     PeerUnavailable,
     PluginNotFound,
     PluginValidationError,
+    shown,
 )
 
 ROBOTS = "otmm_qp.robots"
@@ -193,6 +194,7 @@ def check_parameters(
     params: Mapping[str, Any],
     field: str,
     reserved: tuple[str, ...] = (),
+    explained: Mapping[str, str] | None = None,
 ) -> None:
     """Reject parameters that ``factory`` does not accept, before calling it.
 
@@ -201,9 +203,11 @@ def check_parameters(
         params: Parameters from the config.
         field: Config path used in the message.
         reserved: Parameters the framework passes itself (hidden from the user).
+        explained: Older keys → what to write with the user's own values
+            (:func:`otmm_qp.config.versions.gone_keys`), preferred to ``removed_parameters``.
 
     A plugin's ``removed_parameters`` (old name → one line saying what to write instead, e.g.
-    a rename) are refused with that line rather than as unknown.
+    a rename) are refused with that line rather than as unknown, all of them at once.
 
     Raises:
         ConfigError: Naming the unknown parameter and the allowed ones.
@@ -218,19 +222,16 @@ def check_parameters(
     if any(p.kind == p.VAR_KEYWORD for p in signature.parameters.values()):
         return
     allowed = [a for a in accepted if a not in reserved]
-    removed: Mapping[str, str] = getattr(factory, "removed_parameters", None) or {}
+    removed = {**(getattr(factory, "removed_parameters", None) or {}), **(explained or {})}
+    gone = [key for key in params if key in removed and key not in allowed]
+    if gone:  # renamed or removed: say what to write, for every such key at once
+        rest = "".join(f"; {field}.{key}: {removed[key]}" for key in gone[1:])
+        raise ParameterError(f"{field}.{gone[0]}", removed[gone[0]] + rest)
     for key in params:
-        if key in removed and key not in allowed:  # renamed or removed: say what to write
-            raise ParameterError(f"{field}.{key}", removed[key])
         if key not in allowed:
             raise ConfigError(
                 f"{field}.{key}", f"unknown parameter; allowed: {', '.join(allowed) or '(none)'}"
             )
-
-
-def _shown(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def blame_parameter(
@@ -272,7 +273,7 @@ def blame_parameter(
             where = "".join(f"[{p}]" for p in first["loc"] if isinstance(p, int))
             message = str(first["msg"]).split(",")[0]
             message = message[:1].lower() + message[1:]
-            return (f"{key}{where}", f"{message}, got {_shown(first.get('input', value))}")
+            return (f"{key}{where}", f"{message}, got {shown(first.get('input', value))}")
         except Exception:  # noqa: BLE001 - arbitrary types: not checkable
             continue
     return None
@@ -289,7 +290,10 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
         factory = load(group, name)
     except PluginNotFound as error:
         raise ConfigError(field, str(error)) from error
-    check_parameters(factory, params, field, reserved=tuple(framework))
+    from otmm_qp.config.versions import gone_keys  # lazily: the config imports the registry
+
+    explained = gone_keys(group.rsplit(".", 1)[-1], {**params, "type": name})
+    check_parameters(factory, params, field, tuple(framework), explained)
     try:
         return factory(**framework, **params)
     except ConfigError as error:

@@ -42,7 +42,7 @@ from typing import Any, Literal, TypeVar
 
 import numpy as np
 
-from otmm_qp.exceptions import ParameterError
+from otmm_qp.exceptions import ParameterError, shown
 
 __all__ = [
     "ArrayOf",
@@ -93,7 +93,10 @@ def _finite_number(value: object) -> bool:
     """A real number (not a bool) that is neither NaN nor ±inf."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
         return False
-    return math.isfinite(float(value))
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an integer beyond the float range (10**400)
+        return False
 
 
 class Interval(Constraint):
@@ -335,11 +338,6 @@ def constraints_of(owner: object) -> Constraints | None:
     return declared if isinstance(declared, Mapping) else None
 
 
-def _shown(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def check_params(owner: object, params: Mapping[str, object]) -> None:
     """Check ``params`` against the declarations of ``owner``; call first in ``__init__``.
 
@@ -363,7 +361,7 @@ def check_params(owner: object, params: Mapping[str, object]) -> None:
             continue
         value = params[name]
         if not any(option.is_satisfied_by(value) for option in _options(spec)):
-            raise ParameterError(name, f"must be {describe(spec)}, got {_shown(value)}")
+            raise ParameterError(name, f"must be {describe(spec)}, got {shown(value)}")
 
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -438,7 +436,7 @@ def parameters(owner: object, reserved: Sequence[str] = ()) -> list[ParameterInf
     declared = constraints_of(owner) or {}
     rows = []
     for p in signature_parameters(owner, reserved):
-        default = REQUIRED if p.default is inspect.Parameter.empty else _shown(p.default)
+        default = REQUIRED if p.default is inspect.Parameter.empty else shown(p.default)
         allowed = describe(declared[p.name]) if p.name in declared else "not declared"
         rows.append(ParameterInfo(p.name, default, allowed))
     return rows

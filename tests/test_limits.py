@@ -139,31 +139,32 @@ def test_the_limits_order_does_not_change_the_run() -> None:
 @pytest.mark.parametrize(
     ("backend", "key", "value", "write"),
     [
-        ("qp", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
+        ("qp", "limit_gain", 0.3, "limits: [{type: position, gain: 0.3}]"),
         (
             "qp",
             "acceleration_limit",
             20.0,
-            "limits: [{type: position, gain: 0.5}, {type: acceleration, a_max: A}]",
+            "limits: [{type: position, gain: 0.5}, {type: acceleration, a_max: 20.0}]",
         ),
-        ("qp_scaled", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
-        ("qp_manipulability", "acceleration_limit", 20.0, "{type: acceleration, a_max: A}]"),
-        ("pink", "limit_gain", 0.3, "limits: [{type: position, gain: G}]"),
+        ("qp_scaled", "limit_gain", 0.3, "limits: [{type: position, gain: 0.3}]"),
+        ("qp_manipulability", "acceleration_limit", 20.0, "{type: acceleration, a_max: 20.0}]"),
+        ("pink", "limit_gain", 0.3, "limits: [{type: position, gain: 0.3}]"),
         (
             "sns",
             "max_speed",
             1.0,
-            "limits: [{type: velocity, max_speed: S}, {type: position, gain: 1}]",
+            "limits: [{type: velocity, max_speed: 1.0}, {type: position, gain: 1.0}]",
         ),
     ],
 )
 def test_older_keys_are_refused_saying_what_to_write(
     backend: str, key: str, value: float, write: str
 ) -> None:
+    """The refusal names the key and the list to write, with the user's own value."""
     with pytest.raises(ParameterError) as info:
         registry.create(registry.BACKENDS, backend, {key: value}, "backend")
     message = str(info.value)
-    assert message.startswith(f"backend.{key}: removed (limits have one form): write ")
+    assert message.startswith(f"backend.{key}: removed (limits have one form: ")
     assert write in message and "\n" not in message
 
 

@@ -138,6 +138,13 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
         "",
     ),
     "otmm-qp list": (("tests/test_commands.py::test_list_names_every_group",), ""),
+    "otmm-qp migrate FILE [-o OUT]": (
+        (
+            "tests/test_config_versions.py::test_migrate_cli_prints_what_it_changed",
+            "tests/test_config_versions.py::test_shipped_run_config_runs_identically_after_migrate",
+        ),
+        "",
+    ),
     "otmm-qp report DIR": ((_RUN_REPORT,), ""),
     "otmm-qp study show DIR --episode ID": (
         ("tests/test_study_report.py::test_show_writes_a_config_that_reproduces_the_episode",),

@@ -389,7 +389,7 @@ CLI_CASES: dict[str, tuple[str | None, str, str]] = {
     "qp older posture key": (
         None,
         "{type: qp, posture_weight: 0.1}",
-        r"backend\.posture_weight: moved into posture: \{weight: W, gain: G",
+        r"backend\.posture_weight: moved into posture: .*write posture: \{weight: 0\.1\}",
     ),
     "limit gain 2": (
         None,

@@ -15,7 +15,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from otmm_qp.backends.backend import Backend
-from otmm_qp.exceptions import InfeasibleProblem
+from otmm_qp.exceptions import InfeasibleProblem, SolverNotConverged
 from otmm_qp.limits import LimitBox, LimitSet, Row
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
@@ -164,8 +164,19 @@ class BoxQpBackend(Backend):
         Raises:
             InfeasibleProblem: The policy is ``raise`` (without the step index: the loop that
                 runs the backend states it).
+            SolverNotConverged: The policy is ``raise`` and the solver stopped before
+                converging (``Solution.converged`` false): the problem was not shown
+                infeasible. The ``hold`` and ``dls`` policies treat both alike.
         """
-        if self.infeasible_policy == "raise":
+        solution = evidence[1]
+        if solution is not None and not solution.converged:
+            detail = (
+                f"solver {self.solver!r} stopped before converging ({solution.detail}); the "
+                "problem was not shown infeasible"
+            )
+            if self.infeasible_policy == "raise":
+                raise SolverNotConverged(None, detail, *evidence)
+        elif self.infeasible_policy == "raise":
             raise InfeasibleProblem(None, detail, *evidence)
         lower, upper = self.box.relaxed()
         target = np.zeros_like(lower)

@@ -3,7 +3,9 @@
 The default listing reads only the entry points (no plugin is imported, so it stays fast).
 ``--params`` loads the plugins and prints, under each, its parameters with their defaults and
 declared constraints (:func:`otmm_qp.validation.parameters`); a third-party plugin that declares
-none lists its signature with ``not declared``. Renamed or removed parameters follow, marked
+none lists its signature with ``not declared``. Parameters whose meaning changed between schema
+versions follow (what they mean now and meant before, :mod:`otmm_qp.config.changes`), then
+renamed or removed parameters, marked
 ``(refused)`` with what to write instead. ``--params NAME ...`` restricts it to the plugins of
 those names.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 import argparse
 
 from otmm_qp import registry
+from otmm_qp.config.changes import CHANGES
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.validation import parameters
 
@@ -43,6 +46,14 @@ def parameter_lines(group: str, name: str) -> list[str]:
         return [f"      (cannot be loaded: {error})"]
     rows = parameters(plugin, RESERVED.get(group, ()))
     lines = [f"      {row.name} = {row.default}: {row.allowed}" for row in rows]
+    lines += [
+        f"      {change.key} (meaning changed in schema {change.version}): now {change.now}; "
+        f"in schema {change.version - 1} it was {change.was}"
+        for change in CHANGES
+        if change.kind == "value"
+        and change.group == group.rsplit(".", 1)[-1]
+        and name in change.types
+    ]
     removed = getattr(plugin, "removed_parameters", None) or {}
     lines += [f"      {name} (refused): {why}" for name, why in removed.items()]
     return lines or ["      (no parameters)"]

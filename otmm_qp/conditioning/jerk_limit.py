@@ -32,8 +32,15 @@ __all__ = ["JerkLimitStage"]
 RUCKIG_HINT = "pip install ruckig"
 
 
+#: Limits Ruckig accepts [rad/s², rad/s³]: it raises on an acceleration or jerk below ~1e-12
+#: (a 363-character ``RuckigError`` at step 0); the range is kept well inside.
+RUCKIG_RANGE = (1e-6, 1e12)
+
+
 def _limit(unit: str) -> ArrayOf:
-    return ArrayOf(Interval(Real, 0, None, closed="neither", unit=unit), scalar=True, per="joint")
+    return ArrayOf(
+        Interval(Real, RUCKIG_RANGE[0], RUCKIG_RANGE[1], unit=unit), scalar=True, per="joint"
+    )
 
 
 class JerkLimitStage(CommandStage):

@@ -14,8 +14,9 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from otmm_qp.config.schema import SuiteConfig
+from otmm_qp.config.versions import VERSION_KEY, check_schema
 from otmm_qp.config.yaml_loader import load_yaml
-from otmm_qp.exceptions import ConfigError
+from otmm_qp.exceptions import ConfigError, shown
 
 #: Longest value shown in an error message [characters].
 MESSAGE_VALUE_LIMIT = 80
@@ -35,19 +36,21 @@ def _field_path(location: tuple[int | str, ...]) -> str:
     return ".".join(str(part) for part in location)
 
 
-def _shown(value: Any) -> str:
-    shown = repr(value)
-    return shown if len(shown) <= MESSAGE_VALUE_LIMIT else shown[: MESSAGE_VALUE_LIMIT - 3] + "..."
-
-
 def parse(model: type[Model], data: Any, source: str) -> Model:
     """Validate already-parsed YAML data as ``model``.
 
+    The file's ``version`` and every key that is gone or changed meaning since it are checked
+    first (:func:`~otmm_qp.config.versions.check_schema`: run files may be of schema 1, study
+    files of schema 2 or later); ``version`` is not part of the record.
+
     Raises:
-        ConfigError: ``SOURCE: FIELD.PATH: what is wrong[, got VALUE]`` for the first error.
+        ConfigError: ``SOURCE: FIELD.PATH: what is wrong[, got VALUE]`` for the first error,
+            or one line listing every key of an older schema.
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
+    check_schema(data, source, first_version=1 if issubclass(model, SuiteConfig) else 2)
+    data = {key: value for key, value in data.items() if key != VERSION_KEY}
     try:
         return model.model_validate(data)
     except ValidationError as error:
@@ -57,7 +60,7 @@ def parse(model: type[Model], data: Any, source: str) -> Model:
         if first["type"] == "extra_forbidden":
             message = "unknown key"
         elif first["type"] in ("literal_error", "finite_number", "string_pattern_mismatch"):
-            message = f"{message}, got {_shown(first.get('input'))}"
+            message = f"{message}, got {shown(first.get('input'), MESSAGE_VALUE_LIMIT)}"
         raise ConfigError(f"{source}: {path}" if path else source, message) from None
 
 

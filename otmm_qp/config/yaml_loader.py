@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from otmm_qp.exceptions import ConfigError
+from otmm_qp.exceptions import ConfigError, shown
 
 #: Largest config file read [bytes].
 MAX_BYTES = 1 << 20
@@ -55,18 +55,13 @@ class _StrictLoader(yaml.SafeLoader):
                     ) from None
                 if duplicate:
                     raise yaml.constructor.ConstructorError(
-                        None, None, f"duplicate key {_short(key)}", key_node.start_mark
+                        None, None, f"duplicate key {shown(key, 60)}", key_node.start_mark
                     )
                 seen.add(key)
         return super().construct_mapping(node, deep=deep)  # type: ignore[arg-type]
 
 
 _StrictLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
-
-
-def _short(value: object, limit: int = 60) -> str:
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _expanded_size(node: yaml.Node, depth: int, sizes: dict[int, int], open_: set[int]) -> int:

@@ -20,6 +20,16 @@ from otmm_qp.validation import Constraints, Interval, check_params
 __all__ = ["DelayPlant"]
 
 
+#: Longest delay [control periods] (a queue of that many commands is allocated at reset).
+MAX_STEPS = 100_000
+#: Memory of one queued command per joint [bytes], about (array header amortised).
+BYTES_PER_STEP = 24
+_MEMORY = (
+    f"periods; the queue holds one command per period, ~{BYTES_PER_STEP} bytes per joint: "
+    f"{MAX_STEPS} periods ≈ {MAX_STEPS * BYTES_PER_STEP * 7 / 2**20:.0f} MiB on 7 joints"
+)
+
+
 class DelayPlant(Plant):
     """A FIFO of the last ``steps`` commands, starting full of zeros (the arm at rest).
 
@@ -29,7 +39,7 @@ class DelayPlant(Plant):
 
     name: ClassVar[str] = "delay"
     parameter_constraints: ClassVar[Constraints] = {
-        "steps": Interval(Integral, 0, None, closed="left"),
+        "steps": Interval(Integral, 0, MAX_STEPS, unit=_MEMORY),
     }
 
     def __init__(self, steps: int = 1) -> None:

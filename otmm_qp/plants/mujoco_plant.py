@@ -35,7 +35,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, RobotLoadError
+from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -49,6 +49,12 @@ MUJOCO_HINT = "pip install mujoco (or otmm-qp[peers])"
 def _one_line(error: BaseException) -> str:
     """MuJoCo's (multi-line) message on one line."""
     return " ".join(str(error).split())
+
+
+#: Smallest MuJoCo timestep accepted [s].
+MIN_TIMESTEP = 1e-6
+#: Most MuJoCo steps per control period (``ceil(dt / timestep)``).
+MAX_SUBSTEPS = 1_000
 
 
 class MujocoPlant(Plant):
@@ -76,7 +82,7 @@ class MujocoPlant(Plant):
     parameter_constraints: ClassVar[Constraints] = {
         "frequency": Interval(Real, 0, None, closed="neither", unit="Hz"),
         "damping_ratio": Interval(Real, 0, None, closed="neither"),
-        "timestep": Interval(Real, 0, None, closed="neither", unit="s"),
+        "timestep": Interval(Real, MIN_TIMESTEP, None, closed="left", unit="s"),
         "gravity": Boolean(),
         "compensation": OneOf("gravity", "none"),
         "effort_limit": [Interval(Real, 0, None, closed="neither", unit="N·m or N"), None],
@@ -173,7 +179,15 @@ class MujocoPlant(Plant):
         Raises:
             ConfigError: The robot has no peer description, MuJoCo cannot compile its model,
                 a joint has no effort limit or a moved link no inertia (naming it).
+            ParameterError: ``dt / timestep`` above :data:`MAX_SUBSTEPS` MuJoCo steps.
         """
+        self.substeps = max(1, math.ceil(dt / self.timestep - 1e-9))
+        if self.substeps > MAX_SUBSTEPS:
+            raise ParameterError(
+                "timestep",
+                f"dt / timestep = {self.substeps} MuJoCo steps per control period exceeds "
+                f"{MAX_SUBSTEPS}; raise timestep to at least {dt / MAX_SUBSTEPS:.3g} s",
+            )
         mujoco = self._mujoco
         if self._robot is not robot:
             self._build(robot)
@@ -194,7 +208,6 @@ class MujocoPlant(Plant):
         model.actuator_biasprm[pos, 2] = 0.0
         model.actuator_gainprm[vel, 0] = self.kd
         model.actuator_biasprm[vel, 2] = -self.kd
-        self.substeps = max(1, math.ceil(dt / self.timestep - 1e-9))
         model.opt.timestep = dt / self.substeps
         self._reference = np.array(theta0, dtype=float)
         data.ctrl[pos] = theta0

@@ -24,6 +24,10 @@ from otmm_qp.validation import Constraints, Interval, check_params
 __all__ = ["SensorPlant"]
 
 
+#: Finest encoder resolution accepted [counts/rev] (2³²: beyond any encoder).
+MAX_COUNTS = 2**32
+
+
 class SensorPlant(Plant):
     """Noisy, quantised joint-position measurement.
 
@@ -39,7 +43,7 @@ class SensorPlant(Plant):
 
     parameter_constraints: ClassVar[Constraints] = {
         "noise": Interval(Real, 0, None, closed="left", unit="rad"),
-        "counts": [Interval(Integral, 0, None, closed="neither"), None],
+        "counts": [Interval(Integral, 0, MAX_COUNTS, closed="right", unit="counts/rev"), None],
         "seed": Interval(Integral, 0, None, closed="left"),
     }
 

@@ -3,6 +3,10 @@
 The handler raises KeyboardInterrupt, but Python drops an exception raised where it cannot
 propagate (e.g. inside a fork or logging hook), so the request is also remembered and
 :func:`check` re-raises it at the next safe point (after each run, after each figure).
+
+A C library that installs its own SIGINT handler while it computes (OSQP's interrupt listener:
+it swallows Ctrl-C and returns status ``interrupted``) is called inside :func:`sigint_held`,
+so the signal waits for Python's handler instead.
 """
 
 from __future__ import annotations
@@ -30,6 +34,51 @@ def check() -> None:
     """Raise KeyboardInterrupt if a stop was requested (and possibly swallowed)."""
     if _requested:
         raise KeyboardInterrupt
+
+
+class HeldSigint:
+    """What :func:`sigint_held` yields: set :attr:`swallowed` when the library says it was hit.
+
+    Attributes:
+        swallowed: The native code reported that it caught SIGINT itself (OSQP's status
+            ``OSQP_SIGINT``): the signal is given back to Python's handler when the block ends.
+    """
+
+    swallowed: bool = False
+
+
+@contextlib.contextmanager
+def sigint_held() -> Iterator[HeldSigint]:
+    """Keep SIGINT from native code that installs its own handler; Python handles it after.
+
+    OSQP installs its own SIGINT handler for each ``solve`` (and restores the previous one
+    after): a Ctrl-C during a solve ended that solve as ``interrupted`` and never reached
+    Python, so a study went on and stored the task's offline reference as ``failed``. Inside
+    the block SIGINT is blocked for the calling thread (``pthread_sigmask``: a pending SIGINT
+    goes to Python's handler when the block ends); a SIGINT the kernel delivers to another
+    thread still reaches the library's handler, so the caller sets ``swallowed`` from the
+    library's status and the signal is raised again (``signal.raise_signal``) when the block
+    ends. Cost: two ``pthread_sigmask`` calls (about a microsecond). Every call into such a
+    library goes through it: the QP sessions' and the offline reference's OSQP solves::
+
+        with sigint_held() as held:
+            result = solver.solve(raise_error=False)
+            held.swallowed = result.info.status_val == OSQP_SIGINT
+
+    Raises:
+        KeyboardInterrupt: When the block ends, if SIGINT arrived during it (from Python's
+            handler, or :func:`_request` under :func:`handle_stop_signals`).
+    """
+    held = HeldSigint()
+    masks = hasattr(signal, "pthread_sigmask")  # POSIX signal masks (not on Windows)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if masks else None
+    try:
+        yield held
+    finally:
+        if previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    if held.swallowed:
+        signal.raise_signal(signal.SIGINT)
 
 
 @contextlib.contextmanager

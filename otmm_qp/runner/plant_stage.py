@@ -32,22 +32,50 @@ def plant_record(spec: Any) -> Any:
     return dict(spec.params, type=spec.type)
 
 
-def check_plant(plant: Any, robot: Robot, q0: FloatArray, dt: float, field: str) -> None:
+def check_plant(
+    plant: Any, robot: Robot, q0: FloatArray, dt: float, field: str,
+    budget: tuple[int, int] | None = None,
+) -> None:  # fmt: skip
     """Build and reset a plant once on ``robot`` at ``q0``, so bad input fails before compute.
+
+    Args:
+        plant: The plant's config record.
+        robot: The arm.
+        q0: Start configuration (nq,).
+        dt: Control period [s].
+        field: The plant's config path.
+        budget: ``(steps, max_steps)`` of the run: a stage stepping ``substeps`` times per
+            control period (MuJoCo) counts ``steps × substeps`` against ``max_steps``.
 
     Raises:
         ConfigError: Naming ``field`` (the plant's config path) and what is wrong: an
             out-of-range parameter, a MuJoCo model that does not compile, a URDF without
-            inertias or effort limits, MuJoCo not installed.
+            inertias or effort limits, MuJoCo not installed, more plant steps than
+            ``max_steps``.
     """
     try:
-        build_plant(plant, field).reset(robot, q0, dt)
+        chain = build_plant(plant, field)
+        chain.reset(robot, q0, dt)
+        if budget is not None:
+            _check_substeps(chain, *budget, field)
     except ConfigError as error:
         if error.field.startswith(field):
             raise
         raise ConfigError(f"{field}.{error.field}".rstrip("."), error.message) from None
     except DimensionError as error:
         raise ConfigError(field, str(error)) from None
+
+
+def _check_substeps(chain: PlantChain, steps: int, max_steps: int, field: str) -> None:
+    """Refuse ``steps × substeps`` (the physics steps of a run) above ``max_steps``."""
+    substeps = max(int(getattr(stage, "substeps", 1)) for stage in chain.stages)
+    if steps * substeps > max_steps:
+        raise ConfigError(
+            field,
+            f"{steps} control steps × {substeps} plant steps per period = "
+            f"{steps * substeps:.3g} exceeds max_steps = {max_steps}; raise the plant's "
+            "timestep, shorten duration, or raise max_steps explicitly",
+        )
 
 
 def check_conditioning(
@@ -72,7 +100,7 @@ def check_conditioning(
 
 def experiment_stages(
     default_plant: Any, controllers: list[ControllerConfig], robot: Robot, q0: FloatArray,
-    dt: float, field: str,
+    dt: float, field: str, budget: tuple[int, int] | None = None,
 ) -> tuple[dict[str, Any], dict[str, list[dict[str, Any]]]]:  # fmt: skip
     """Plant and conditioning records per controller name of one experiment, checked.
 
@@ -83,6 +111,7 @@ def experiment_stages(
         q0: Start configuration (nq,).
         dt: Control period [s].
         field: Config path of the experiment.
+        budget: ``(steps, max_steps)`` of its runs (see :func:`check_plant`).
 
     Raises:
         ConfigError: A plant or conditioning stage that cannot run (see :func:`check_plant`).
@@ -94,6 +123,6 @@ def experiment_stages(
         if c.conditioning
     }
     for plant in {repr(p): p for p in plants.values()}.values():
-        check_plant(plant, robot, q0, dt, f"{field}.plant")
+        check_plant(plant, robot, q0, dt, f"{field}.plant", budget)
     check_conditioning(conditioning, robot, dt, field)
     return plants, conditioning

@@ -193,5 +193,6 @@ def prepare_experiment(
     plants, conditioning = experiment_stages(
         config.plant if config.plant is not None else suite.plant,
         config.controllers, robot, episodes[0].q0, episodes[0].dt, field_path,
+        (max(e.steps for e in episodes), episodes[0].max_steps),
     )  # fmt: skip
     return PreparedExperiment(config, episodes, controllers, skipped, plants, conditioning)

@@ -77,6 +77,57 @@ def descend_sigma_min(
     return None
 
 
+class _Reached(Exception):
+    """σ_min fell below the tolerance: stop the minimiser (carries nothing; the best is kept)."""
+
+
+def minimise_sigma_min(
+    robot: Robot,
+    coordinates: FloatArray,
+    tolerance: float,
+    iterations: int,
+    weight: FloatArray | None = None,
+) -> FloatArray | None:
+    r"""Minimise σ_min of the task Jacobian inside the joint limits, from ``coordinates``.
+
+    .. math:: \min_{q}\ \sigma_{min}(W J(q)) \quad	ext{s.t.}\quad q_{lo} \le q \le q_{hi}
+
+    by L-BFGS-B with the analytic gradient (:func:`~otmm_qp.singularity.sigma_min_gradient`),
+    stopped as soon as σ_min < ``tolerance``. Unlike :func:`descend_sigma_min` (Newton steps on
+    σ_min = 0, clipped into the limits) it follows the limits: a 7-DoF arm's position Jacobian
+    is singular only where several joints sit at or near a limit (the Panda's stretched
+    elbow), which the clipped Newton steps do not reach.
+
+    Returns:
+        Joint coordinates ``(nv,)`` with σ_min < ``tolerance``, or None after ``iterations``.
+    """
+    from scipy.optimize import minimize
+
+    lower, upper = sampling_bounds(robot)
+    found: list[FloatArray] = []
+
+    def value_and_gradient(q: FloatArray) -> tuple[float, FloatArray]:
+        state = KinematicState.compute(robot, robot.configuration(q), weight)
+        if state.sigma_min < tolerance:
+            found.append(np.array(q, dtype=float))
+            raise _Reached
+        return state.sigma_min, sigma_min_gradient(robot, state)
+
+    start = np.clip(np.asarray(coordinates, dtype=float), lower, upper)
+    try:
+        minimize(
+            value_and_gradient,
+            start,
+            jac=True,
+            bounds=list(zip(lower, upper, strict=True)),
+            method="L-BFGS-B",
+            options={"maxiter": iterations},
+        )
+    except _Reached:
+        return found[-1]
+    return None
+
+
 def solve_ik(
     robot: Robot,
     coordinates: FloatArray,

@@ -1,4 +1,4 @@
-"""Finding singular configurations within a budget (random starts + σ_min descent)."""
+"""Finding singular configurations within a budget: σ_min descent, then bounded minimisation."""
 
 from __future__ import annotations
 
@@ -7,7 +7,12 @@ import numpy as np
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import TaskGenerationError
-from otmm_qp.scenarios.search import descend_sigma_min, random_coordinates
+from otmm_qp.scenarios.search import (
+    descend_sigma_min,
+    minimise_sigma_min,
+    random_coordinates,
+    sampling_bounds,
+)
 
 
 class SingularSearch:
@@ -35,13 +40,24 @@ class SingularSearch:
     ) -> FloatArray:
         """Joint coordinates ``(nv,)`` with σ_min < tolerance.
 
+        Newton steps on σ_min = 0 from each random start first (:func:`descend_sigma_min`);
+        when none converges (a redundant arm's position task, singular only against its joint
+        limits), σ_min is minimised inside the limits (:func:`minimise_sigma_min`) from the
+        mid-range pose and fresh random starts, the same budget.
+
         Raises:
-            TaskGenerationError: No start converged within the budget (names the robot).
+            TaskGenerationError: Neither converged within the budget (names the robot).
         """
         for _ in range(self.restarts):
             found = descend_sigma_min(
                 robot, random_coordinates(robot, rng), self.tolerance, self.iterations, weight
             )
+            if found is not None:
+                return found
+        lower, upper = sampling_bounds(robot)
+        starts = [0.5 * (lower + upper)]
+        for start in starts + [random_coordinates(robot, rng) for _ in range(self.restarts - 1)]:
+            found = minimise_sigma_min(robot, start, self.tolerance, self.iterations, weight)
             if found is not None:
                 return found
         raise TaskGenerationError(

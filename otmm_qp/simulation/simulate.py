@@ -18,7 +18,7 @@ import numpy as np
 
 from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
-from otmm_qp.exceptions import InfeasibleProblem, OtmmError
+from otmm_qp.exceptions import InfeasibleProblem, OtmmError, SolverNotConverged
 from otmm_qp.plants.chain import PlantChain
 from otmm_qp.plants.ideal import IdealPlant
 from otmm_qp.plants.plant import PlantStep
@@ -49,6 +49,8 @@ def failure_message(k: int, error: BaseException) -> str:
     """``step k: ...`` on one line for an error raised inside step ``k``."""
     if isinstance(error, InfeasibleProblem):
         return str(InfeasibleProblem(k, error.detail))
+    if isinstance(error, SolverNotConverged):
+        return str(SolverNotConverged(k, error.detail))
     text = " ".join(str(error).split())[:MESSAGE_LIMIT]
     if isinstance(error, OtmmError):
         return f"step {k}: {text}"

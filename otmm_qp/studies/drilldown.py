@@ -135,9 +135,10 @@ def run_config(config: StudyConfig, row: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_run_config(path: Path, config: dict[str, Any]) -> None:
-    """Write the run config as YAML (floats as ``repr``, so they read back bit for bit)."""
-    import yaml
+    """Write the run config as YAML (floats as ``repr``, so they read back bit for bit).
 
-    from otmm_qp.output.paths import atomic_write_text
+    Through :func:`otmm_qp.config.emit.write_config`, which states the schema ``version``.
+    """
+    from otmm_qp.config.emit import write_config
 
-    atomic_write_text(path, yaml.safe_dump(config, sort_keys=False, allow_unicode=True))
+    write_config(path, config)

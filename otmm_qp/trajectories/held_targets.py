@@ -22,6 +22,7 @@ import numpy as np
 from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.pose import rpy_matrix
+from otmm_qp.trajectories.time_grid import piece_index, start_ticks
 from otmm_qp.trajectories.trajectory import Trajectory
 
 
@@ -89,6 +90,7 @@ class HeldTargetsTrajectory(Trajectory):
             previous = target
         self.targets = values
         self.starts = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
+        self._start_ticks = start_ticks(durations)  # the switch times, compared as integers
         self.duration = float(np.sum(durations))
         self._zero = np.zeros(6 if self.is_pose else dim)
 
@@ -118,8 +120,13 @@ class HeldTargetsTrajectory(Trajectory):
         return values
 
     def index(self, t: float) -> int:
-        """Index of the target held at ``t`` [s] (the first before 0, the last after the end)."""
-        return max(0, int(np.searchsorted(self.starts, t, side="right")) - 1)
+        """Index of the target held at ``t`` [s] (the first before 0, the last after the end).
+
+        Switch times and ``t`` are compared in integer ticks (:mod:`.time_grid`): ``hold: 0.1``
+        sampled at ``t_k = k·0.02`` switches at ``k = 5, 10, 15, …``, not a step late where the
+        float sum of holds exceeds ``k·dt`` by an ulp.
+        """
+        return piece_index(self._start_ticks, t)
 
     def sample(self, t: float) -> tuple[FloatArray, FloatArray]:
         """Held target ``X_i`` and zero velocity at ``t`` [s]."""

@@ -2,9 +2,12 @@ r"""OSQP (ADMM + polishing) session: warm started from the previous primal-dual 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution, conflicting_bounds
@@ -15,6 +18,14 @@ SETTINGS = {
 }  # fmt: skip
 #: OSQP ``status_val`` of "solved" and "solved inaccurate".
 _SOLVED = (1, 2)
+#: OSQP's status when its own SIGINT handler caught Ctrl-C (``SolverStatus.OSQP_SIGINT``).
+_INTERRUPTED = 10
+#: Tolerance of the polished second solve after a stop before convergence.
+RETRY_EPS = 1e-6
+#: Largest bound violation of a polished point that is kept [problem units].
+FEASIBILITY_TOL = 1e-9
+#: OSQP ``status_val`` of a stop before convergence: iteration limit, time limit, unsolved.
+_UNCONVERGED = (7, 8, 11)
 
 
 class OsqpSession(QpSession):
@@ -73,12 +84,49 @@ class OsqpSession(QpSession):
             Px=problem.P[rows, cols], q=problem.q, l=self._lower, u=self._upper, **extra
         )
 
+    def _solve(self) -> Any:
+        """One OSQP solve, Ctrl-C kept for Python (:func:`sigint_held`)."""
+        with sigint_held() as held:  # OSQP's own SIGINT handler would swallow Ctrl-C
+            result = self._solver.solve(raise_error=False)
+            held.swallowed = int(result.info.status_val) == _INTERRUPTED
+        return result
+
+    def _polished(self) -> FloatArray | None:
+        """A second solve from where OSQP stopped, at :data:`RETRY_EPS`, polished; or None.
+
+        Near-LP problems (``qp_scaled``'s: a 10⁻⁶ Hessian) can exhaust the iterations at 10⁻¹⁰
+        while the iterate is close to the optimum; polishing (an equality-constrained solve on
+        the active set the iterate shows) then gives the optimum to full accuracy. The polished
+        point is kept only when OSQP reports the polish successful and it satisfies every bound
+        to :data:`FEASIBILITY_TOL` (checked here, not trusted).
+        """
+        self._solver.update_settings(eps_abs=RETRY_EPS, eps_rel=RETRY_EPS)
+        try:
+            result = self._solve()
+        finally:
+            self._solver.update_settings(eps_abs=SETTINGS["eps_abs"], eps_rel=SETTINGS["eps_rel"])
+        if int(getattr(result.info, "status_polish", 0)) != 1 or result.x is None:
+            return None
+        x = np.array(result.x, dtype=float)
+        n = x.size
+        rows = (
+            np.concatenate([x, self._a_values[:, 1:].T @ x]) if self._a_values.shape[1] > 1 else x
+        )
+        tol = FEASIBILITY_TOL
+        feasible = np.all(rows >= self._lower - tol) and np.all(rows <= self._upper + tol)
+        return x if bool(feasible) and rows.size == self._lower.size and n > 0 else None
+
     def solve(self) -> Solution:
         """Solve; found when OSQP reports solved (or solved inaccurate)."""
         if self._refused is not None:
             return Solution(None, False, self._refused)
-        result = self._solver.solve(raise_error=False)
+        result = self._solve()
         status = int(result.info.status_val)
+        if status in _UNCONVERGED:
+            polished = self._polished()
+            if polished is not None:
+                return Solution(polished, True, f"{result.info.status}; polished")
+            return Solution(None, False, str(result.info.status), converged=False)
         if status not in _SOLVED:
             return Solution(None, False, str(result.info.status))
         return Solution(np.array(result.x), True, str(result.info.status))

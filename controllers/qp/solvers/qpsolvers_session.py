@@ -8,6 +8,7 @@ from typing import Any
 import qpsolvers
 
 from otmm_qp.robots.robot import FloatArray
+from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution
@@ -45,7 +46,10 @@ def solve_with_qpsolvers(problem: qpsolvers.Problem, solver: str) -> FloatArray 
     with warnings.catch_warnings():
         # osqp 1.x warns that solve()'s raise_error default will change; qpsolvers calls it.
         warnings.simplefilter("ignore", PendingDeprecationWarning)
-        solution = qpsolvers.solve_problem(problem, solver=solver, **SOLVER_OPTIONS.get(solver, {}))
+        with sigint_held():  # a C solver's own SIGINT handler (OSQP's) would swallow Ctrl-C
+            solution = qpsolvers.solve_problem(
+                problem, solver=solver, **SOLVER_OPTIONS.get(solver, {})
+            )
     return solution.x if solution.found and solution.x is not None else None
 
 

@@ -17,11 +17,14 @@ class Solution(NamedTuple):
         x: The primal solution, shape ``(n,)`` (a fresh array), or None when not found.
         found: Whether the solver reports a solution.
         detail: The solver's own status, e.g. ``exitflag 1`` or ``solved``.
+        converged: False when the solver stopped before converging (an iteration or time
+            limit): not found, yet not shown infeasible either.
     """
 
     x: FloatArray | None
     found: bool
     detail: str
+    converged: bool = True
 
 
 def conflicting_bounds(problem: QpProblem) -> str | None:

@@ -14,18 +14,10 @@ from pathlib import Path
 from typing import Any
 
 from otmm_qp.exceptions import ConfigError, UnreachableTrajectory
+from otmm_qp.studies.keys import MIN_ID_LENGTH, episode_id
 from otmm_qp.studies.schema import StudyConfig
 
-#: Hex digits of ``episode_key`` in an episode id (40 bits: a collision among 10⁵ episodes
-#: has probability ≈ 5·10⁻³; :func:`find_episode` then asks for more digits).
-ID_LENGTH = 10
-#: Fewest hex digits :func:`find_episode` accepts.
-MIN_ID_LENGTH = 6
-
-
-def episode_id(key: str) -> str:
-    """The short id of an episode: the first :data:`ID_LENGTH` characters of its key."""
-    return str(key)[:ID_LENGTH]
+__all__ = ["episode_id", "find_episode", "run_config", "write_run_config"]
 
 
 def find_episode(rows: list[dict[str, Any]], wanted: str, where: str) -> dict[str, Any]:

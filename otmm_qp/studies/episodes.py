@@ -22,7 +22,7 @@ from otmm_qp.scenarios.generator import Task, TaskGenerator
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
-from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.oracle import (
     REFERENCE_INDEX,
     failed_columns,

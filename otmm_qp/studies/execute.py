@@ -286,7 +286,7 @@ def _run_claimed(
     outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
     chunks = make_chunks(plan, done)
     payload = payload_of(plan)
-    writer = PartWriter(out, ident)
+    writer = PartWriter(out, ident, plan.task_columns)
     written: set[str] = set(done)
     tic = time.perf_counter()
 

@@ -29,13 +29,12 @@ from typing import Any
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.exceptions import ConfigError
 from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_OBJECTIVES, STUDY_PAIRED, Metric
 from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
-from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
-from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.criteria import FAILURE_CAUSES, is_achievable
 from otmm_qp.studies.fronts import (
     GroupFront,
     counts_sentence,
@@ -43,7 +42,8 @@ from otmm_qp.studies.fronts import (
     group_fronts,
     summary_table,
 )
-from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
+from otmm_qp.studies.oracle import REFERENCE_NAME
+from otmm_qp.studies.rows import RELATIVE_ERROR, is_reference, number, read, task_of
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
     ALPHA,
@@ -59,10 +59,7 @@ from otmm_qp.studies.statistics import (
     significant_digits,
     wilson_interval,
 )
-from otmm_qp.studies.storage import read_study_folder
 
-#: Oracle-relative error column computed for every controller row [m].
-RELATIVE_ERROR = metric_row("oracle_relative_error").name
 #: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
 RESAMPLES = 2000
 #: Metrics summarised by median + bootstrap interval (rows of the metric table).
@@ -106,33 +103,23 @@ class Rows:
 
 
 def _is_oracle(row: dict[str, Any]) -> bool:
-    return row.get("controller") == REFERENCE_NAME
+    return is_reference(row)
 
 
 def _known(value: Any) -> bool:
     return value is not None and not (isinstance(value, float) and math.isnan(value))
 
 
-def _value(row: dict[str, Any], name: str) -> float:
-    value = row.get(name)
-    if value is None or isinstance(value, str):
-        return math.nan
-    return float(value)
+_value = number
 
 
 def task_key(row: dict[str, Any]) -> tuple[object, ...]:
     """The task an episode ran on (``task_id`` when stored) and its loop mode."""
-    task = row.get("task_id") or (
-        row["robot"],
-        row["generator"],
-        row.get("generator_params"),
-        row["task_index"],
-    )
-    return (task, row["loop_mode"])
+    return (task_of(row), row["loop_mode"])
 
 
 def _task(row: dict[str, Any]) -> object:
-    return task_key(row)[0]
+    return task_of(row)
 
 
 def _fmt(value: float, digits: int = 3) -> str:
@@ -149,50 +136,22 @@ def _interval(value: float | Interval, low: float = math.nan, high: float = math
     return f"{_fmt(value)} [{_fmt(low)}, {_fmt(high)}]"
 
 
-def join_reference(rows: list[dict[str, Any]]) -> None:
-    """Copy each ``oracle`` row's ``reference.*`` columns onto the rows of its task, in place.
-
-    Columns already on a row are kept; ``reference.max_error`` falls back to the oracle row's
-    ``max_error`` and ``reference.final_error`` is its ``final_error``. Then every row gets
-    :data:`RELATIVE_ERROR` = ``max_error − reference.max_error`` (NaN without a reference).
-    """
-    references: dict[object, dict[str, Any]] = {}
-    for row in rows:
-        if not _is_oracle(row):
-            continue
-        references[_task(row)] = task_reference(row)
-    for row in rows:
-        for name, value in references.get(_task(row), {}).items():
-            if not _known(row.get(name)):
-                row[name] = value
-        row[RELATIVE_ERROR] = _value(row, "max_error") - _value(row, "reference.max_error")
-
-
 def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config and its rows: references joined, success and causes recomputed.
+    """The study config and its rows (:func:`otmm_qp.studies.rows.read`) as dicts.
 
-    Only the rows of this study and plan are read (``study.json``).
-
-    What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
-    stderr, one line per reason.
+    What the reader left out (other studies' parts, symlinks, duplicates...) and parts of an
+    older schema are printed on stderr, one line each.
 
     Raises:
         OtmmError: No study marker, an invalid one, or no episodes in ``out``.
     """
-    config, data = read_study_folder(out)
-    for line in data.ignored:
-        print(f"otmm-qp: report ignored {line}", file=sys.stderr)
-    if data.table is None or data.table.num_rows == 0:
-        raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = data.table.to_pylist()
-    join_reference(rows)
+    frame = read(out)
+    for line in frame.notes():
+        print(f"otmm-qp: report {line}", file=sys.stderr)
+    rows = frame.table.to_pylist()
     for row in rows:
-        if not row.get("episode_id"):
-            row["episode_id"] = episode_id(str(row.get("episode_key", "")))
-        causes = () if _is_oracle(row) else failure_causes(row, config.success)
-        row["failure_causes"] = causes
-        row["success"] = not causes
-    return config, Rows(rows)
+        row["failure_causes"] = tuple(row["failure_causes"])
+    return frame.config, Rows(rows)
 
 
 def _median_metrics(rows: Rows) -> tuple[Metric, ...]:

@@ -7,6 +7,7 @@ stored episodes and a changed setting makes a new episode.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 
 from otmm_qp import registry
 from otmm_qp.config.base import PluginConfig
@@ -22,6 +24,7 @@ from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
+from otmm_qp.studies.columns import descriptor_type
 from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
 from otmm_qp.studies.task_ids import check_entries, seed_name
@@ -254,12 +257,15 @@ class StudyPlan:
         controllers: Expanded controllers (available ones only).
         skipped: ``(name, reason)`` of controllers whose peer library is missing.
         episodes: Every episode in a fixed order.
+        task_columns: Arrow types of the ``task.*`` descriptor columns of the generators'
+            first tasks (every part stores them, see :mod:`otmm_qp.studies.columns`).
     """
 
     config: StudyConfig
     controllers: list[ControllerConfig]
     skipped: list[tuple[str, str]]
     episodes: list[Episode]
+    task_columns: dict[str, pa.DataType] = dataclasses.field(default_factory=dict)
 
     def payload(self) -> dict[str, Any]:
         """JSON-ready description the workers rebuild everything from."""
@@ -320,7 +326,7 @@ def oracle_key(config: StudyConfig, robot: int, generator: int, index: int, seed
 
 def check_plugins(
     config: StudyConfig, controllers: list[ControllerConfig], source: str
-) -> list[tuple[str, str]]:
+) -> tuple[list[tuple[str, str]], dict[str, Any]]:
     """Build every robot, generator and controller once so bad input fails before any work.
 
     Each robot is built once; each generator draws its first task on each robot (a generator
@@ -329,7 +335,8 @@ def check_plugins(
     task, whose episode also meets the step cap.
 
     Returns:
-        ``(name, reason)`` of controllers skipped because their peer library is missing.
+        ``(name, reason)`` of controllers skipped because their peer library is missing, and
+        the ``task.*`` descriptors of the first tasks (their names and example values).
 
     Raises:
         ConfigError: Unknown plugin or parameter, a controller that does not fit a robot, or
@@ -348,6 +355,7 @@ def check_plugins(
         for j, gen in enumerate(config.generators)
     ]
     built, skipped = [], []
+    descriptors: dict[str, Any] = {}
     for k, controller in enumerate(controllers):
         try:
             built.append(
@@ -372,6 +380,8 @@ def check_plugins(
             _first_task(config, spec.name, j, generator, robot, weight, source)
             for j, generator in enumerate(generators)
         ]
+        for task in tasks:
+            descriptors.update({f"task.{k}": v for k, v in task.descriptors.items()})
         first = tasks[0]
         field = f"{source}: robots.{i} ({spec.name}) first task of generators.0"
         try:
@@ -383,7 +393,7 @@ def check_plugins(
             raise ConfigError(field, str(error)) from None
         prepare(episode, built, f"{source}: robots.{i}", reachable=False)
         _check_stages(config, controllers, robot, episode.q0, source)
-    return skipped
+    return skipped, descriptors
 
 
 def _check_stages(
@@ -433,7 +443,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     check_plan_size(config, source)
     check_entries(config, source)
     controllers = expand_controllers(config, source)
-    skipped = check_plugins(config, controllers, source)
+    skipped, descriptors = check_plugins(config, controllers, source)
     skipped_names = {name for name, _ in skipped}
     controllers = [c for c in controllers if c.name not in skipped_names]
     if not controllers:
@@ -451,4 +461,5 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)
                         episodes.append(Episode(key, r, g, index, seed, c, mode))
-    return StudyPlan(config, controllers, skipped, episodes)
+    task_columns = {name: descriptor_type([value]) for name, value in descriptors.items()}
+    return StudyPlan(config, controllers, skipped, episodes, task_columns)

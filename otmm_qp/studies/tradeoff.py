@@ -39,17 +39,15 @@ speed is 0 gets the cap :data:`SPEED_FLOOR` (the solver needs a positive one).
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.exceptions import ConfigError
 from otmm_qp.reference import ReferenceResult, solve_reference
 from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -57,7 +55,7 @@ from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.episodes import WorkUnit, _episode_duration, _generate_task
 from otmm_qp.studies.fronts import GroupFront, front_of, row_value
 from otmm_qp.studies.oracle import REFERENCE_NAME, reference_settings
-from otmm_qp.studies.report import RESAMPLES, Rows, load_rows, objectives, task_key
+from otmm_qp.studies.report import RESAMPLES, Rows, objectives, task_key
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test
 from otmm_qp.studies.task_ids import entry_label
@@ -438,49 +436,11 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
     return "\n".join(lines)
 
 
-def _tasks_option(text: str | None) -> int | None:
-    if text is None:
-        return None
-    try:
-        value = int(text)
-    except ValueError:
-        raise ConfigError("--tasks", f"must be an integer >= 1, got {text!r:.40}") from None
-    if value < 1:
-        raise ConfigError("--tasks", f"must be an integer >= 1, got {value}")
-    return value
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> Any:  # one line, exit 2 (argparse prints usage too)
-        print(f"tradeoff: error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI entry: print the Markdown of :func:`study_tradeoff` for a study folder."""
-    parser = _Parser(prog="python -m otmm_qp.studies.tradeoff")
-    parser.add_argument("study", type=Path)
-    parser.add_argument("--group-by", default=GROUPINGS[0], help="generator or kind")
-    parser.add_argument("--calm", default=None, help="the calm row (default: front's)")
-    parser.add_argument("--accurate", default=None, help="the accurate row (default: front's)")
-    parser.add_argument("--tasks", default=None, help="at most N tasks per group")
-    args = parser.parse_args(argv)
-    try:
-        if args.group_by not in GROUPINGS:
-            raise ConfigError(
-                "--group-by", f"{args.group_by!r:.40} is not one of {', '.join(GROUPINGS)}"
-            )
-        tasks = _tasks_option(args.tasks)
-        config, rows = load_rows(args.study)
-        groups = study_tradeoff(config, rows, args.group_by, args.calm, args.accurate, tasks)
-    except OtmmError as error:
-        print(f"tradeoff: error: {error}", file=sys.stderr)
-        return 2
-    try:
-        print(render(groups, resolution(config)))
-    except BrokenPipeError:  # e.g. `... | head`: the reader left
-        sys.stderr.close()
-    return 0
+    """Deprecated alias of ``otmm-qp study tradeoff`` (kept for one release)."""
+    from otmm_qp.cli import deprecated_alias
+
+    return deprecated_alias("otmm_qp.studies.tradeoff", ["study", "tradeoff"], argv)
 
 
 if __name__ == "__main__":

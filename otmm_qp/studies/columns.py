@@ -15,6 +15,7 @@ column reference in ``docs/studies.md`` is generated from this list
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -139,6 +140,14 @@ _BY_NAME = {c.name: c for c in EPISODE_COLUMNS}
 def declared(name: str) -> Column | None:
     """The declared column ``name``, or None (a ``task.*`` descriptor or unknown)."""
     return _BY_NAME.get(name)
+
+
+def number(row: Mapping[str, Any], name: str) -> float:
+    """A row's numeric column as float: NaN when absent, null or text (the one accessor)."""
+    value = row.get(name)
+    if value is None or isinstance(value, (str, bytes)):
+        return math.nan
+    return float(value)
 
 
 def descriptor_type(values: Iterable[Any]) -> pa.DataType:

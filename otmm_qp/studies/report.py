@@ -34,6 +34,7 @@ from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_OBJECTIVES, STUDY_PAIRED,
 from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
+from otmm_qp.studies.columns import number
 from otmm_qp.studies.criteria import FAILURE_CAUSES, is_achievable
 from otmm_qp.studies.fronts import (
     GroupFront,
@@ -43,7 +44,7 @@ from otmm_qp.studies.fronts import (
     summary_table,
 )
 from otmm_qp.studies.oracle import REFERENCE_NAME
-from otmm_qp.studies.rows import RELATIVE_ERROR, is_reference, number, read, task_of
+from otmm_qp.studies.rows import RELATIVE_ERROR, is_reference, read, task_of
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
     ALPHA,

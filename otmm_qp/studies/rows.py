@@ -25,7 +25,7 @@ from typing import Any
 import pyarrow as pa
 
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.studies.columns import DERIVED_COLUMNS
+from otmm_qp.studies.columns import DERIVED_COLUMNS, number
 from otmm_qp.studies.criteria import failure_causes
 from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
@@ -70,14 +70,6 @@ def is_reference(row: dict[str, Any]) -> bool:
 
 def _known(value: Any) -> bool:
     return value is not None and not (isinstance(value, float) and math.isnan(value))
-
-
-def number(row: dict[str, Any], name: str) -> float:
-    """The value of a numeric column as float: NaN when absent, null or text."""
-    value = row.get(name)
-    if value is None or isinstance(value, (str, bytes)):
-        return math.nan
-    return float(value)
 
 
 def task_of(row: dict[str, Any]) -> object:

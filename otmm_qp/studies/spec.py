@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pyarrow as pa
 
 from otmm_qp import registry
@@ -27,6 +26,7 @@ from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
 from otmm_qp.studies.columns import descriptor_type
 from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
+from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, study_episode
 from otmm_qp.studies.task_ids import check_entries, seed_name
 
 
@@ -204,13 +204,6 @@ def _plant_axis(config: StudyConfig) -> list[tuple[str | None, Any]]:
     return [(p.name, plant_record(p.plant)) for p in config.plants]
 
 
-def plant_name(config: ControllerConfig) -> str:
-    """The ``plants`` label of an expanded controller (``ideal`` without a plants axis)."""
-    if config.plant is None:
-        return "ideal"
-    return config.name.rsplit("@", 1)[1] if "@" in config.name else "controller's own"
-
-
 def controller_record(config: ControllerConfig) -> dict[str, Any]:
     """JSON-ready record of a controller (name, filters, backend with parameters).
 
@@ -344,7 +337,6 @@ def check_plugins(
     """
     from otmm_qp.runner.build import build_controller, load_robot
     from otmm_qp.runner.prepare import prepare
-    from otmm_qp.studies.episodes import study_episode
 
     robots = [
         load_robot(spec.robot, f"{source}: robots.{i}.robot")
@@ -354,6 +346,11 @@ def check_plugins(
         registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
         for j, gen in enumerate(config.generators)
     ]
+    cache = BuildCache()  # the tasks are built from these robots and generators
+    for i, robot in enumerate(robots):
+        cache.robots[BuildCache.robot_key(config, i)] = robot
+    for j, generator in enumerate(generators):
+        cache.generators[BuildCache.generator_key(config, j)] = generator
     built, skipped = [], []
     descriptors: dict[str, Any] = {}
     for k, controller in enumerate(controllers):
@@ -368,24 +365,17 @@ def check_plugins(
         except PeerUnavailable as error:
             skipped.append((controller.name, str(error)))
     for i, (spec, robot) in enumerate(zip(config.robots, robots, strict=True)):
-        weight = None
-        if spec.task_weight is not None:
-            if len(spec.task_weight) != robot.task_dim:
-                raise ConfigError(
-                    f"{source}: robots.{i}.task_weight",
-                    f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
-                )
-            weight = np.asarray(spec.task_weight, dtype=float)
-        tasks = [
-            _first_task(config, spec.name, j, generator, robot, weight, source)
-            for j, generator in enumerate(generators)
-        ]
-        for task in tasks:
-            descriptors.update({f"task.{k}": v for k, v in task.descriptors.items()})
-        first = tasks[0]
+        if spec.task_weight is not None and len(spec.task_weight) != robot.task_dim:
+            raise ConfigError(
+                f"{source}: robots.{i}.task_weight",
+                f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
+            )
+        tasks = [_first_task(config, i, j, cache, source) for j in range(len(generators))]
+        for made in tasks:
+            descriptors.update({f"task.{k}": v for k, v in made.task.descriptors.items()})
         field = f"{source}: robots.{i} ({spec.name}) first task of generators.0"
         try:
-            episode = study_episode(config, robot, first, weight, config.loop_modes[0])
+            episode = study_episode(config, tasks[0], config.loop_modes[0])
         except ConfigError as error:
             where = "duration" if error.field == "duration" else error.field
             raise ConfigError(f"{field}: {where}", error.message) from None
@@ -417,19 +407,13 @@ def _check_stages(
 
 
 def _first_task(
-    config: StudyConfig,
-    robot_name: str,
-    index: int,
-    generator: Any,
-    robot: Any,
-    weight: Any,
-    source: str,
-) -> Any:
-    """The generator's first task on ``robot``; a generator that cannot work on it is refused."""
+    config: StudyConfig, robot: int, index: int, cache: BuildCache, source: str
+) -> BuiltTask:
+    """Entry ``index``'s first task on ``robot``; a generator that cannot work on it is refused."""
     gen = config.generators[index]
-    seed = task_seed(config.seed, robot_name, seed_name(config, index), 0)
+    seed = task_seed(config.seed, config.robots[robot].name, seed_name(config, index), 0)
     try:
-        return generator.generate(robot, seed, weight)
+        return StudyTask(robot, index, 0, seed).build(config, cache)
     except TaskGenerationError as error:
         raise ConfigError(f"{source}: generators.{index} ({gen.type})", str(error)) from None
 

@@ -5,7 +5,7 @@ For a stored study, per group of tasks (robot × generator, or a kind of task as
 **calm** one (default: the front's lowest median peak joint speed,
 :meth:`GroupFront.best_on` of ``max_joint_speed``) and the **accurate** one (default: the
 lowest median oracle-relative max error). On every task *i* both ran, rebuild the task exactly
-as the study did (:func:`otmm_qp.studies.episodes._generate_task`, same seed, weight and
+as the study did (:meth:`otmm_qp.studies.task.StudyTask.build`, same seed, weight and
 duration) and solve the offline reference (:func:`otmm_qp.reference.solve_reference`, the
 study's own tolerances and budget) with the speed cap
 
@@ -52,13 +52,12 @@ from otmm_qp.reference import ReferenceResult, solve_reference
 from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
-from otmm_qp.studies.episodes import WorkUnit, _episode_duration, _generate_task
 from otmm_qp.studies.fronts import GroupFront, front_of, row_value
 from otmm_qp.studies.oracle import REFERENCE_NAME, reference_settings
 from otmm_qp.studies.report import RESAMPLES, Rows, objectives, task_key
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test
-from otmm_qp.studies.task_ids import entry_label
+from otmm_qp.studies.task import StudyTask
 
 #: How tasks are grouped: per robot × generator, or per kind of task pooled over robots.
 GROUPINGS: tuple[str, ...] = ("generator", "kind")
@@ -153,25 +152,15 @@ def rebuild_task(config: StudyConfig, row: Row) -> tuple[Robot, FloatArray | Non
         ConfigError: The row's robot or generator entry is not in the study, or the task
             cannot be generated again.
     """
-    robots = [r.name for r in config.robots]
-    labels = [entry_label(config, j) for j in range(len(config.generators))]
-    if row.get("robot") not in robots:
-        raise ConfigError("study.json", f"robot {row.get('robot')!r} of a row is not in the study")
-    if row.get("generator_entry") not in labels:
+    task = StudyTask.of_row(config, row)
+    try:
+        built = task.build(config)
+    except Exception as error:  # noqa: BLE001 - a plugin's failure, said in one line
+        reason = " ".join(str(error).split())[:200]
         raise ConfigError(
-            "study.json", f"generator entry {row.get('generator_entry')!r} is not in the study"
-        )
-    unit = WorkUnit(
-        robots.index(row["robot"]),
-        labels.index(row["generator_entry"]),
-        int(row["task_index"]),
-        int(row["task_seed"]),
-        (),
-    )
-    robot, weight, task, error = _generate_task(config, unit)
-    if robot is None or task is None:
-        raise ConfigError(str(row.get("task_id")), f"cannot rebuild the task: {error}")
-    return robot, weight, task, _episode_duration(config, task)
+            str(row.get("task_id")), f"cannot rebuild the task: {type(error).__name__}: {reason}"
+        ) from None
+    return built.robot, built.weight, built.task, built.duration
 
 
 def resolution(config: StudyConfig) -> float:

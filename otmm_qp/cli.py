@@ -27,7 +27,7 @@ from otmm_qp.runner import interrupt  # noqa: E402
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name (a new command: one entry).
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "pareto")
 #: Longest argument value quoted in an error line [characters].
 MAX_ERROR_LINE = 300
 

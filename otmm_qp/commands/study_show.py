@@ -69,7 +69,7 @@ def show(out: Path, wanted: str) -> int:
     from otmm_qp.output.paths import ensure_inside, safe_name
     from otmm_qp.studies.criteria import failure_causes
     from otmm_qp.studies.drilldown import episode_id, find_episode, run_config, write_run_config
-    from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.rows import load_rows
 
     config, rows = load_rows(out)
     row = find_episode(rows.rows, wanted, str(out))

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     """Print (or write) the Markdown of :func:`~otmm_qp.studies.tradeoff.study_tradeoff`."""
     from otmm_qp.commands.text_output import emit, out_file
     from otmm_qp.exceptions import ConfigError
-    from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.rows import load_rows
     from otmm_qp.studies.tradeoff import GROUPINGS, render, resolution, study_tradeoff
 
     if args.group_by not in GROUPINGS:

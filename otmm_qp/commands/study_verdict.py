@@ -24,7 +24,8 @@ def run(args: argparse.Namespace) -> int:
     """Print (or write) the fronts with ``--ours`` placed on them."""
     from otmm_qp.commands.text_output import emit, out_file
     from otmm_qp.studies.group_verdict import kind_fronts, render
-    from otmm_qp.studies.report import check_highlight, load_rows, study_fronts
+    from otmm_qp.studies.rows import load_rows
+    from otmm_qp.studies.verdicts import check_highlight, study_fronts
 
     out = out_file(args.out)
     rows = load_rows(args.study)[1]

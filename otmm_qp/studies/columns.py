@@ -174,11 +174,15 @@ def episode_schema(extra: Mapping[str, pa.DataType] | None = None) -> pa.Schema:
 def extra_columns(
     rows: Sequence[Mapping[str, Any]], known: Mapping[str, pa.DataType] | None = None
 ) -> dict[str, pa.DataType]:
-    """``known`` plus the undeclared columns of ``rows`` (``task.*`` descriptors), typed."""
+    """``known`` plus the undeclared columns of ``rows`` (``task.*`` descriptors), typed.
+
+    A new column whose values are all null is left out until a value gives it a type (so
+    no part stores an untyped column another part would clash with).
+    """
     extra = dict(known or {})
     for row in rows:
-        for name in row:
-            if name not in _BY_NAME and name not in extra:
+        for name, value in row.items():
+            if value is not None and name not in _BY_NAME and name not in extra:
                 extra[name] = descriptor_type(r.get(name) for r in rows)
     return extra
 

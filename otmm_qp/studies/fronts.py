@@ -40,6 +40,8 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.metrics.table import metric
 from otmm_qp.output.pareto import dominates
 from otmm_qp.studies.columns import number
+from otmm_qp.studies.formatting import fmt as _fmt
+from otmm_qp.studies.formatting import p_value as _p
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test, wilcoxon_p
 
@@ -273,14 +275,6 @@ def group_fronts(
         front_of(robot, generator, selected, objectives, key, resamples)
         for (robot, generator), selected in groups.items()
     ]
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.3g}" if math.isfinite(value) else "–"
-
-
-def _p(value: float) -> str:
-    return f"{value:.2g}" if math.isfinite(value) else "–"
 
 
 def _label(name: str, ours: Callable[[str], bool]) -> str:

@@ -28,13 +28,8 @@ from otmm_qp.studies.fronts import (
     summary_table,
 )
 from otmm_qp.studies.oracle import REFERENCE_NAME
-from otmm_qp.studies.report import (
-    RESAMPLES,
-    Rows,
-    objectives,
-    task_groups,
-    task_key,
-)
+from otmm_qp.studies.rows import Rows, task_key
+from otmm_qp.studies.verdicts import RESAMPLES, objectives, task_groups
 
 #: Kinds of task chosen by generator (the reference-chosen ones come from ``task_groups``).
 GENERATOR_KINDS: tuple[tuple[str, str], ...] = (

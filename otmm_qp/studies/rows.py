@@ -111,6 +111,43 @@ def judged_rows(config: StudyConfig, rows: list[dict[str, Any]]) -> None:
         row["success"] = not causes
 
 
+@dataclass
+class Rows:
+    """Episode rows as Python dicts, with success and failure causes recomputed.
+
+    ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
+    (select them with ``controller=REFERENCE_NAME``).
+    """
+
+    rows: list[dict[str, Any]]
+
+    def controllers(self) -> list[str]:
+        """Competing controllers in first-seen order (the reference excluded)."""
+        return list(dict.fromkeys(r["controller"] for r in self.rows if not is_reference(r)))
+
+    def robots(self) -> list[str]:
+        """Robots in first-seen order."""
+        return list(dict.fromkeys(r["robot"] for r in self.rows))
+
+    def select(self, **equal: Any) -> list[dict[str, Any]]:
+        """Rows whose columns equal the given values."""
+        return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
+
+    @property
+    def has_reference(self) -> bool:
+        """Whether any task has an offline reference."""
+        return any(is_reference(r) or _known(r.get("reference.achievable")) for r in self.rows)
+
+    def accuracy_metric(self) -> str:
+        """The headline accuracy column: oracle-relative error, or max error without reference."""
+        return RELATIVE_ERROR if self.has_reference else "max_error"
+
+
+def task_key(row: dict[str, Any]) -> tuple[object, ...]:
+    """The task an episode ran on (``task_id`` when stored) and its loop mode."""
+    return (task_of(row), row["loop_mode"])
+
+
 def read(out: str | Path) -> StudyFrame:
     """The study in ``out``: config and judged table (see the module docstring).
 
@@ -143,3 +180,21 @@ def load(out: str | Path) -> pa.Table:
     for line in frame.notes():
         print(f"otmm-qp: {line}", file=sys.stderr)
     return frame.table
+
+
+def load_rows(out: str | Path) -> tuple[StudyConfig, Rows]:
+    """The study config and its rows (:func:`otmm_qp.studies.rows.read`) as dicts.
+
+    What the reader left out (other studies' parts, symlinks, duplicates...) and parts of an
+    older schema are printed on stderr, one line each.
+
+    Raises:
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
+    """
+    frame = read(Path(out))
+    for line in frame.notes():
+        print(f"otmm-qp: report {line}", file=sys.stderr)
+    rows = frame.table.to_pylist()
+    for row in rows:
+        row["failure_causes"] = tuple(row["failure_causes"])
+    return frame.config, Rows(rows)

@@ -52,12 +52,14 @@ from otmm_qp.reference import ReferenceResult, solve_reference
 from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
+from otmm_qp.studies.formatting import fmt as _fmt
 from otmm_qp.studies.fronts import GroupFront, front_of, row_value
 from otmm_qp.studies.oracle import REFERENCE_NAME, reference_settings
-from otmm_qp.studies.report import RESAMPLES, Rows, objectives, task_key
+from otmm_qp.studies.rows import Rows, task_key
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test
 from otmm_qp.studies.task import StudyTask
+from otmm_qp.studies.verdicts import RESAMPLES, objectives
 
 #: How tasks are grouped: per robot × generator, or per kind of task pooled over robots.
 GROUPINGS: tuple[str, ...] = ("generator", "kind")
@@ -351,10 +353,6 @@ def study_tradeoff(
 
 def _finite_p(test: PairedResult) -> float:
     return test.p_value if math.isfinite(test.p_value) else 1.0
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.3g}" if math.isfinite(value) else "–"
 
 
 def _counts(test: PairedResult) -> str:

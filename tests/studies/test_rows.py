@@ -196,3 +196,16 @@ def test_parts_are_read_into_buffers_sized_to_them(study: Path) -> None:
     )
     assert done.returncode == 0, done.stderr[-500:]
     assert done.stdout.split() == ["9", "9"]
+
+
+def test_a_column_without_values_is_never_stored_untyped(tmp_path: Path) -> None:
+    writer = PartWriter(tmp_path, "abc")
+    writer.write([{**_row("a" * 16, None), "task.shape": None, "task.size": 2}], [])
+    writer.write([{**_row("b" * 16, None), "task.shape": "line", "task.size": 1.5}], [])
+    writer.write([{**_row("c" * 16, None), "task.size": None}], [])
+    schemas = [pq.read_schema(p) for p in _parts(tmp_path)]
+    assert "task.shape" not in schemas[0].names
+    assert schemas[1].field("task.shape").type == pa.string() == schemas[2].field("task.shape").type
+    assert {s.field("task.size").type for s in schemas} == {pa.float64()}  # ints as float64
+    table = ds.dataset(tmp_path / EPISODES).to_table()
+    assert table.num_rows == 3

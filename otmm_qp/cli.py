@@ -1,8 +1,10 @@
-"""Command-line interface: ``otmm-qp [run CONFIG] | list | report DIR | bench | ...``.
+"""Command-line interface: ``otmm-qp [run CONFIG] | list | report DIR | study ... | ...``.
 
-A thin dispatcher over the modules of :mod:`otmm_qp.commands` (one per subcommand). Bad input
-of any kind prints one line ``otmm-qp: error: ...`` and exits with status 2; results already
-computed are written before the error is reported. SIGTERM is handled like SIGINT (exit 130).
+A thin dispatcher over the modules of :mod:`otmm_qp.commands` (one per command, listed in
+:data:`COMMAND_MODULES`; a command with subcommands, like ``study``, lists its own). Bad input
+of any kind — a bad argument too — prints one line ``otmm-qp: error: ...`` and exits with
+status 2; results already computed are written before the error is reported. SIGTERM is
+handled like SIGINT (exit 130).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 from types import ModuleType
+from typing import NoReturn
 
 from otmm_qp.blas_threads import prefer_single_threaded_blas
 
@@ -23,8 +26,23 @@ from otmm_qp.runner import interrupt  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
-#: Subcommand modules in ``otmm_qp.commands``, imported by name.
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "migrate")
+#: Subcommand modules in ``otmm_qp.commands``, imported by name (a new command: one entry).
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "pareto", "migrate")
+#: Longest argument value quoted in an error line [characters].
+MAX_ERROR_LINE = 300
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line ``otmm-qp: error: ...``, exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print the one line (cut to :data:`MAX_ERROR_LINE`) and exit 2."""
+        text = " ".join(message.split())
+        if len(text) > MAX_ERROR_LINE:
+            text = text[: MAX_ERROR_LINE - 1] + "…"
+        command = self.prog.removeprefix("otmm-qp").strip()
+        print(f"otmm-qp: error: {command + ': ' if command else ''}{text}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
 
 
 def _command(name: str) -> ModuleType:
@@ -32,7 +50,7 @@ def _command(name: str) -> ModuleType:
 
 
 def _parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="otmm-qp",
         description="Compare velocity-level IK controllers near kinematic singularities. "
         "With no command, reproduces the OTMM paper into ./results/paper.",
@@ -52,7 +70,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     arguments = list(sys.argv[1:] if argv is None else argv)
     if not arguments:
         arguments = ["run"]  # no command: the paper reproduction
-    args = parser.parse_args(arguments)
+    normalise = getattr(modules.get(arguments[0]), "normalise", None)
+    if normalise is not None:  # e.g. `study FILE` is `study run FILE`
+        arguments = [arguments[0], *normalise(arguments[1:])]
+    try:
+        args = parser.parse_args(arguments)
+    except SystemExit as stop:  # --help, or a bad argument (already said in one line)
+        return int(stop.code or 0)
     try:
         with interrupt.handle_stop_signals():
             status = int(modules[args.command or "run"].run(args))
@@ -70,6 +94,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+
+
+def deprecated_alias(module: str, command: Sequence[str], argv: Sequence[str] | None) -> int:
+    """``python -m MODULE ARGS`` as ``otmm-qp COMMAND ARGS``, after a one-line notice.
+
+    The old entry points (``python -m otmm_qp.studies.tradeoff`` ...) are kept as such aliases
+    for one release.
+    """
+    spelled = "otmm-qp " + " ".join(command)
+    print(
+        f"otmm-qp: note: python -m {module} is now `{spelled}`; "
+        "this alias goes in the next release",
+        file=sys.stderr,
+    )
+    return main([*command, *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

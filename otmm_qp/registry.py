@@ -15,6 +15,7 @@ distributions claiming one name raise :class:`PluginValidationError`.
 
 from __future__ import annotations
 
+import importlib
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -73,41 +74,28 @@ class EntryPointSpec:
 _cache: dict[tuple[str, str], Any] = {}
 
 
+#: The base class of each group, by import path (``module:Class``): the base modules import
+#: this one, so the registry names them instead of importing them (no package cycle).
+BASE_CLASSES: dict[str, str] = {
+    ROBOTS: "otmm_qp.robots.robot:Robot",
+    FILTERS: "otmm_qp.filters.task_filter:TaskFilter",
+    BACKENDS: "otmm_qp.backends.backend:Backend",
+    TRAJECTORIES: "otmm_qp.trajectories.trajectory:Trajectory",
+    TASK_GENERATORS: "otmm_qp.scenarios.generator:TaskGenerator",
+    LIMITS: "otmm_qp.limits.limit:BaseLimit",
+    PLANTS: "otmm_qp.plants.plant:Plant",
+    CONDITIONING: "otmm_qp.conditioning.stage:CommandStage",
+}
+
+
 def _base_class(group: str) -> type | None:
-    # Imported lazily: the base modules import this one.
-    if group == ROBOTS:
-        from otmm_qp.robots.robot import Robot
-
-        return Robot
-    if group == FILTERS:
-        from otmm_qp.filters.task_filter import TaskFilter
-
-        return TaskFilter
-    if group == BACKENDS:
-        from otmm_qp.backends.backend import Backend
-
-        return Backend
-    if group == TRAJECTORIES:
-        from otmm_qp.trajectories.trajectory import Trajectory
-
-        return Trajectory
-    if group == TASK_GENERATORS:
-        from otmm_qp.scenarios.generator import TaskGenerator
-
-        return TaskGenerator
-    if group == LIMITS:
-        from otmm_qp.limits.limit import BaseLimit
-
-        return BaseLimit
-    if group == PLANTS:
-        from otmm_qp.plants.plant import Plant
-
-        return Plant
-    if group == CONDITIONING:
-        from otmm_qp.conditioning.stage import CommandStage
-
-        return CommandStage
-    return None
+    """The base class a plugin of ``group`` must derive from (None: any object)."""
+    path = BASE_CLASSES.get(group)
+    if path is None:
+        return None
+    module, name = path.split(":")
+    base: type = getattr(importlib.import_module(module), name)
+    return base
 
 
 def specs(group: str) -> dict[str, EntryPointSpec]:

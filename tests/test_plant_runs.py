@@ -142,8 +142,9 @@ def test_plants_axis_names_rows_and_keeps_old_keys(tmp_path: Path) -> None:
     rows = [r for r in table.to_pylist() if r["controller"] != "oracle"]
     assert {r["plant"] for r in rows} == {"ideal", "lag", "noise"}
     assert len(rows) == 2 * 3 * 3
-    assert headline_main([str(out)]) == 0
-    assert headline_main([str(tmp_path)]) == 2
+    assert headline_main([str(out)]) == 0  # the deprecated alias
+    assert main(["study", "plants", str(out)]) == 0
+    assert main(["study", "plants", str(tmp_path)]) == 2
 
 
 def test_bad_plant_in_a_study_names_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

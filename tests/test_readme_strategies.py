@@ -12,7 +12,6 @@ import numpy as np
 
 from otmm_qp.cli import main
 from otmm_qp.studies.group_verdict import kind_fronts, kinds_table
-from otmm_qp.studies.group_verdict import main as group_verdict
 from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import load_study, plan_study
 
@@ -37,13 +36,14 @@ def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
     assert f"otmm-qp study {readme_file} --out results/strategies-readme --highlight sigma_lm" in (
         section
     )
-    assert "group_verdict results/strategies-readme --ours sigma_lm --kinds" in section
+    assert "otmm-qp study verdict results/strategies-readme --ours sigma_lm --kinds" in section
     out = tmp_path / "strategies-readme"
     command = ["study", str(ROOT / readme_file), "--out", str(out), "--highlight", "sigma_lm"]
     assert main([*command, "--workers", "1", "--quiet"]) == 0, capsys.readouterr().err
     assert "**sigma_lm** (ours)" in (out / "study_report.md").read_text(encoding="utf-8")
     printed = tmp_path / "kinds.md"
-    assert group_verdict([str(out), "--ours", "sigma_lm", "--kinds", "--out", str(printed)]) == 0
+    verdict = ["study", "verdict", str(out), "--ours", "sigma_lm", "--kinds"]
+    assert main([*verdict, "--out", str(printed)]) == 0
     table = printed.read_text(encoding="utf-8").strip().split("\n\n", 1)[1].splitlines()
     assert _readme_table(section) == table
 

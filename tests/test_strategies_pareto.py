@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from otmm_qp.cli import main as cli
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.output.pareto import (
     Entry,
@@ -45,7 +46,7 @@ def test_reads_summaries_and_writes_inside_out(tmp_path: Path) -> None:
     entries = read_summary(results / "summary.csv")
     assert [e.valid for e in entries] == [True, False]
     out = tmp_path / "out"
-    assert main([str(results), "--out", str(out)]) == 0
+    assert cli(["pareto", str(results), "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["pareto.md", "pareto.png"]
     assert "| E1/clik | x (0.001) | x (0.5) | x (0.1) | x |" in (out / "pareto.md").read_text()
 
@@ -53,8 +54,11 @@ def test_reads_summaries_and_writes_inside_out(tmp_path: Path) -> None:
 def test_missing_summary_is_a_one_line_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main([str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
-    assert "no summary.csv" in capsys.readouterr().err
+    assert cli(["pareto", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("otmm-qp: error:") and "no summary.csv" in err and "\n" not in err
+    assert main([str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2  # the old alias
+    assert capsys.readouterr().err.startswith("otmm-qp: note: python -m otmm_qp.output.pareto")
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "summary.csv").write_text("experiment,loop_mode\nE1,clik\n", encoding="utf-8")

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from otmm_qp.cli import main as study_main
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
@@ -50,7 +51,7 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_command_prints_the_table(study: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main([str(study)]) == 0
+    assert study_main(["study", "tradeoff", str(study)]) == 0
     text = capsys.readouterr().out
     assert text.startswith("| robot | group | calm row | accurate row | tasks |")
     body = [line for line in text.splitlines() if line.startswith("| planar2 |")]
@@ -58,11 +59,14 @@ def test_the_command_prints_the_table(study: Path, capsys: pytest.CaptureFixture
     assert all(line.rstrip(" |").rsplit("| ", 1)[-1] in OUTCOMES for line in body)
     assert "Evidence, not a proof" in text and "ignores one-step jumps" in text
     assert "Errors below 0.0002 m" in text  # 1 % of success.max_position_error = 0.02 m
-    assert main([str(study), "--group-by", "kind", "--calm", "dls", "--accurate", "pinv"]) == 0
+    argv = ["study", "tradeoff", str(study), "--group-by", "kind", "--calm", "dls"]
+    assert study_main([*argv, "--accurate", "pinv"]) == 0
     text = capsys.readouterr().out
     assert "| dls | pinv |" in text
-    assert main([str(study), "--calm", "dls", "--accurate", "pinv", "--tasks", "1"]) == 0
-    rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| planar2 |")]
+    assert main([str(study), "--calm", "dls", "--accurate", "pinv", "--tasks", "1"]) == 0  # alias
+    captured = capsys.readouterr()
+    assert captured.err.startswith("otmm-qp: note: python -m otmm_qp.studies.tradeoff is now")
+    rows = [r for r in captured.out.splitlines() if r.startswith("| planar2 |")]
     assert rows and all(r.split(" | ")[4] == "1" for r in rows)
 
 
@@ -108,31 +112,27 @@ def test_bound_is_respected_and_error_is_monotone(study: Path) -> None:
 @pytest.mark.parametrize(
     ("argv", "start"),
     [
-        (["--calm", "nope"], "tradeoff: error: --calm: no online row 'nope' in the study; have:"),
-        (["--accurate", "oracle"], "tradeoff: error: --accurate: no online row 'oracle'"),
-        (["--calm", "dls", "--accurate", "dls"], "tradeoff: error: --accurate: 'dls' is"),
-        (["--tasks", "0"], "tradeoff: error: --tasks: must be an integer >= 1, got 0"),
-        (["--tasks", "x"], "tradeoff: error: --tasks: must be an integer >= 1, got 'x'"),
-        (["--group-by", "robot"], "tradeoff: error: --group-by: 'robot' is not one of"),
-        (["--bogus"], "tradeoff: error: unrecognized arguments: --bogus"),
+        (["--calm", "nope"], "otmm-qp: error: --calm: no online row 'nope' in the study; have:"),
+        (["--accurate", "oracle"], "otmm-qp: error: --accurate: no online row 'oracle'"),
+        (["--calm", "dls", "--accurate", "dls"], "otmm-qp: error: --accurate: 'dls' is"),
+        (["--tasks", "0"], "otmm-qp: error: --tasks: must be an integer >= 1, got 0"),
+        (["--tasks", "x"], "otmm-qp: error: --tasks: must be an integer >= 1, got 'x'"),
+        (["--group-by", "robot"], "otmm-qp: error: --group-by: 'robot' is not one of"),
+        (["--bogus"], "otmm-qp: error: unrecognized arguments: --bogus"),
     ],
 )
 def test_bad_options_are_one_line(
     study: Path, argv: list[str], start: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    try:
-        code = main([str(study), *argv])
-    except SystemExit as stop:  # argparse's own errors
-        code = stop.code
-    assert code == 2
+    assert study_main(["study", "tradeoff", str(study), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(start) and "\n" not in err and "Traceback" not in err
 
 
 def test_bad_folders_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main([str(tmp_path)]) == 2  # not a study folder
+    assert study_main(["study", "tradeoff", str(tmp_path)]) == 2  # not a study folder
     err = capsys.readouterr().err.strip()
-    assert err.startswith("tradeoff: error:") and "\n" not in err and "Traceback" not in err
+    assert err.startswith("otmm-qp: error:") and "\n" not in err and "Traceback" not in err
     bare = {
         **STUDY,
         "name": "bare",
@@ -140,8 +140,8 @@ def test_bad_folders_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
         "generators": [{"type": "beyond_reach", "count": 1, "duration": [1.0, 1.0]}],
     }
     run_study(plan_study(parse_study(bare)), tmp_path / "bare", "bare.yaml", workers=1)
-    assert main([str(tmp_path / "bare")]) == 2
+    assert study_main(["study", "tradeoff", str(tmp_path / "bare")]) == 2
     err = capsys.readouterr().err.strip()
     assert (
-        err == "tradeoff: error: study: no offline reference rows stored (reference.enabled: true)"
+        err == "otmm-qp: error: study: no offline reference rows stored (reference.enabled: true)"
     )

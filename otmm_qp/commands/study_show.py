@@ -16,6 +16,8 @@ from typing import Any
 
 from otmm_qp.exceptions import ConfigError
 
+HELP = "one stored episode's spec, and a run config that re-runs it (DIR --episode ID)"
+
 #: Row columns printed under "metrics".
 SHOWN_METRICS = (
     "max_error",
@@ -67,7 +69,7 @@ def show(out: Path, wanted: str) -> int:
     from otmm_qp.output.paths import ensure_inside, safe_name
     from otmm_qp.studies.criteria import failure_causes
     from otmm_qp.studies.drilldown import episode_id, find_episode, run_config, write_run_config
-    from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.rows import load_rows
 
     config, rows = load_rows(out)
     row = find_episode(rows.rows, wanted, str(out))
@@ -82,19 +84,31 @@ def show(out: Path, wanted: str) -> int:
         return 0
     identity = episode_id(str(row["episode_key"]))
     path = ensure_inside(out, out / "drilldown" / f"{safe_name(f'episode-{identity}')}.yaml")
-    path.parent.mkdir(exist_ok=True)
-    write_run_config(path, run_config(config, row))
+    folder = path.parent
+    if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+        raise ConfigError(str(folder), "is not a folder; move it away to write the run config")
+    record = run_config(config, row)
+    try:
+        folder.mkdir(exist_ok=True)
+        write_run_config(path, record)
+    except OSError as error:
+        reason = error.strerror or type(error).__name__
+        raise ConfigError(str(path), f"cannot write the run config: {reason}") from None
     print(f"  run config: {path}")
     print(f"  re-run:     otmm-qp run {path} --out {path.with_suffix('')}")
     return 0
 
 
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The study directory and ``--episode``."""
+    parser.add_argument("directory", type=Path, help="the study directory holding the episode")
+    parser.add_argument(
+        "--episode", required=True, help="episode id (the report's 'id' column, or a longer prefix)"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
-    """``study show``: the study directory and ``--episode`` are required."""
-    if args.directory is None:
-        raise ConfigError(
-            "study show", "give the study directory: otmm-qp study show DIR --episode ID"
-        )
+    """``study show DIR --episode ID``."""
     if not args.episode:
         raise ConfigError("--episode", "give an episode id (the report's 'id' column)")
     return show(Path(args.directory), str(args.episode))

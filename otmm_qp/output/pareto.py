@@ -13,15 +13,12 @@ run per objective, the runs no other run dominates) and ``DIR/pareto.png``.
 
 from __future__ import annotations
 
-import argparse
 import io
 import math
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from otmm_qp.exceptions import OtmmError
 from otmm_qp.metrics.table import metric
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text
 from otmm_qp.output.results import IDENTITY_COLUMNS, ResultsDir
@@ -194,18 +191,10 @@ def write_pareto(results: Sequence[Path], out_dir: Path) -> tuple[Path, Path]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m otmm_qp.output.pareto RESULTS... --out DIR``."""
-    parser = argparse.ArgumentParser(prog="python -m otmm_qp.output.pareto", description=__doc__)
-    parser.add_argument("results", nargs="+", type=Path, help="results folders (summary.csv)")
-    parser.add_argument("--out", type=Path, required=True, help="folder for pareto.md/.png")
-    args = parser.parse_args(argv)
-    try:
-        markdown, png = write_pareto(args.results, args.out)
-    except OtmmError as error:
-        print(f"pareto: error: {error}", file=sys.stderr)
-        return 2
-    print(f"  pareto: {markdown}\n  figure: {png}")
-    return 0
+    """Deprecated alias of ``otmm-qp pareto`` (kept for one release)."""
+    from otmm_qp.cli import deprecated_alias
+
+    return deprecated_alias("otmm_qp.output.pareto", ["pareto"], argv)
 
 
 if __name__ == "__main__":

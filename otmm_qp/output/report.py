@@ -39,6 +39,7 @@ from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
 from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
+from otmm_qp.output.replays import find_replays
 from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
 from otmm_qp.status import Status
@@ -353,8 +354,6 @@ def _html_replays(results_dir: Path) -> list[str]:
     Replays are linked by relative path rather than embedded: an arm replay holds its meshes
     (megabytes) and would swamp the report.
     """
-    from otmm_qp.replay.write import find_replays  # lazy: only reports need it
-
     replays = find_replays(results_dir)
     if not replays:
         return []

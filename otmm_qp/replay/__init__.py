@@ -7,6 +7,7 @@ A replay reads the time series a run stored (never re-simulates). Entry points:
 
 from __future__ import annotations
 
-from otmm_qp.replay.write import find_replays, write_replays
+from otmm_qp.output.replays import find_replays
+from otmm_qp.replay.write import write_replays
 
 __all__ = ["find_replays", "write_replays"]

@@ -14,10 +14,9 @@ from typing import Any, TextIO
 
 from otmm_qp.exceptions import ConfigError, OtmmError
 from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name
+from otmm_qp.output.replays import REPLAY_FOLDER
 from otmm_qp.replay.stored_runs import StoredRun, discover_runs, group_scenarios, select_runs
 from otmm_qp.robots.robot import Robot
-
-REPLAY_FOLDER = "replays"
 
 
 def _unique_stems(keys: Sequence[tuple[str, ...]]) -> dict[tuple[str, ...], str]:
@@ -214,28 +213,6 @@ def _write_sidecar(path: Path, title: str, kind: str, frames: int, controllers: 
     )
     path.with_suffix(".json").parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
-
-
-def find_replays(results_dir: Path) -> list[tuple[str, Path]]:
-    """``(title, path relative to results_dir)`` of every replay already written, by file name.
-
-    Reads the ``.json`` sidecars in ``RESULTS_DIR/replays``; a sidecar whose file is missing
-    or that is unreadable is ignored.
-    """
-    folder = Path(results_dir) / REPLAY_FOLDER
-    if not folder.is_dir():
-        return []
-    found = []
-    for sidecar in sorted(folder.glob("*.json")):
-        try:
-            description = json.loads(sidecar.read_text(encoding="utf-8"))
-            title, name = str(description["title"]), str(description["file"])
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
-        target = folder / name
-        if Path(name).name == name and target.is_file() and target.suffix in (".html", ".gif"):
-            found.append((title, Path(REPLAY_FOLDER) / name))
-    return found
 
 
 def replay_after_run(results_dir: Path, prepared: Sequence[Any] = ()) -> OtmmError | None:

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from otmm_qp.metrics.table import metric
+from otmm_qp.studies.columns import number
 
 if TYPE_CHECKING:
     from otmm_qp.simulation.run_result import RunResult
@@ -79,13 +80,6 @@ def speed_ratios(run: RunResult) -> dict[str, float]:
     return out
 
 
-def _number(row: dict[str, Any], name: str) -> float:
-    value = row.get(name)
-    if value is None or isinstance(value, (str, bytes)):
-        return math.nan
-    return float(value)
-
-
 def _above(value: float, bound: float | None) -> bool:
     """Whether a known value exceeds a given bound (unknown values and bounds never fail)."""
     return bound is not None and math.isfinite(bound) and not math.isnan(value) and value > bound
@@ -110,18 +104,18 @@ def _is_nan(value: Any) -> bool:
 def _error_causes(row: dict[str, Any], criteria: SuccessCriteria) -> bool:
     """Whether the error criterion of the row's reading fails."""
     if is_achievable(row):
-        return _above(_number(row, "max_error"), criteria.max_position_error) or _above(
-            _number(row, "max_orientation_error"), criteria.max_orientation_error
+        return _above(number(row, "max_error"), criteria.max_position_error) or _above(
+            number(row, "max_orientation_error"), criteria.max_orientation_error
         )
     factor = criteria.graceful.error_factor
-    reference = _number(row, "reference.max_error")
-    orientation = _number(row, "reference.max_orientation_error")
-    final = _number(row, "reference.final_error")
+    reference = number(row, "reference.max_error")
+    orientation = number(row, "reference.max_orientation_error")
+    final = number(row, "reference.final_error")
     final_bound = max(criteria.max_position_error or 0.0, factor * final)
     return (
-        _above(_number(row, "max_error"), factor * reference)
-        or _above(_number(row, "max_orientation_error"), factor * orientation)
-        or (criteria.graceful.return_to_path and _above(_number(row, "final_error"), final_bound))
+        _above(number(row, "max_error"), factor * reference)
+        or _above(number(row, "max_orientation_error"), factor * orientation)
+        or (criteria.graceful.return_to_path and _above(number(row, "final_error"), final_bound))
     )
 
 
@@ -140,9 +134,9 @@ def failure_causes(row: dict[str, Any], criteria: SuccessCriteria) -> tuple[str,
     if _error_causes(row, criteria):
         causes.append("error")
     if criteria.max_joint_speed is not None:
-        fast = _above(_number(row, "max_joint_speed"), criteria.max_joint_speed)
+        fast = _above(number(row, "max_joint_speed"), criteria.max_joint_speed)
     else:
-        fast = _above(_number(row, "max_speed_ratio"), criteria.joint_speed_factor)
+        fast = _above(number(row, "max_speed_ratio"), criteria.joint_speed_factor)
     if fast:
         causes.append("speed")
     if criteria.no_limit_violation and int(row.get("position_violations") or 0) > 0:
@@ -152,7 +146,7 @@ def failure_causes(row: dict[str, Any], criteria: SuccessCriteria) -> tuple[str,
     if not row.get("completed"):
         causes.append("stuck")
     if not is_achievable(row) and _above(
-        _number(row, "max_jump_ratio"), criteria.graceful.max_jump_factor
+        number(row, "max_jump_ratio"), criteria.graceful.max_jump_factor
     ):
         causes.append("chatter")
     return tuple(causes)

@@ -9,23 +9,17 @@ metrics exactly (the wall-clock ``step_time_*`` aside).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 from otmm_qp.exceptions import ConfigError, UnreachableTrajectory
+from otmm_qp.runner.build import check_reachable
+from otmm_qp.studies.keys import MIN_ID_LENGTH, episode_id
 from otmm_qp.studies.schema import StudyConfig
+from otmm_qp.studies.spec import controller_record, expand_controllers
+from otmm_qp.studies.task import StudyTask
 
-#: Hex digits of ``episode_key`` in an episode id (40 bits: a collision among 10⁵ episodes
-#: has probability ≈ 5·10⁻³; :func:`find_episode` then asks for more digits).
-ID_LENGTH = 10
-#: Fewest hex digits :func:`find_episode` accepts.
-MIN_ID_LENGTH = 6
-
-
-def episode_id(key: str) -> str:
-    """The short id of an episode: the first :data:`ID_LENGTH` characters of its key."""
-    return str(key)[:ID_LENGTH]
+__all__ = ["episode_id", "find_episode", "run_config", "write_run_config"]
 
 
 def find_episode(rows: list[dict[str, Any]], wanted: str, where: str) -> dict[str, Any]:
@@ -51,20 +45,6 @@ def find_episode(rows: list[dict[str, Any]], wanted: str, where: str) -> dict[st
     return found[0]
 
 
-def _generator_entry(config: StudyConfig, row: dict[str, Any]) -> dict[str, Any]:
-    """The generator entry of the row (type and parameters, without ``count``)."""
-    params = json.loads(str(row.get("generator_params") or "{}"))
-    for gen in config.generators:
-        if (
-            gen.type == row["generator"]
-            and json.loads(json.dumps(gen.params, sort_keys=True, default=str)) == params
-        ):
-            return {"type": gen.type, **gen.params}
-    raise ConfigError(
-        "--episode", f"generator {row['generator']} {params} of the episode is not in study.json"
-    )
-
-
 def run_config(config: StudyConfig, row: dict[str, Any]) -> dict[str, Any]:
     """An ``otmm-qp run`` config (as a dict) that re-runs the episode of ``row``.
 
@@ -74,34 +54,28 @@ def run_config(config: StudyConfig, row: dict[str, Any]) -> dict[str, Any]:
     Raises:
         ConfigError: The row's robot, generator or controller is not in the study.
     """
-    from otmm_qp.runner.build import check_reachable
-    from otmm_qp.scenarios.study_task import generate_task
-    from otmm_qp.studies.spec import controller_record, expand_controllers
-
-    robots = {r.name: r for r in config.robots}
-    if row.get("robot") not in robots:
-        raise ConfigError("--episode", f"robot {row.get('robot')!r} is not in study.json")
-    robot_spec = robots[row["robot"]]
+    try:
+        which = StudyTask.of_row(config, row)
+    except ConfigError as error:
+        raise ConfigError("--episode", error.message) from None
+    robot_spec = config.robots[which.robot]
     controllers = {c.name: c for c in expand_controllers(config, "study.json")}
     if row.get("controller") not in controllers:
         raise ConfigError("--episode", f"controller {row.get('controller')!r} is not in study.json")
     robot = {"type": robot_spec.robot.type, **robot_spec.robot.params}
+    entry = config.generators[which.generator]
     trajectory: dict[str, Any] = {
         "type": "study_task",
         "robot": robot,
-        "generator": _generator_entry(config, row),
-        "seed": int(row["task_seed"]),
+        "generator": {"type": entry.type, **entry.params},
+        "seed": which.seed,
     }
     if robot_spec.task_weight is not None:
         trajectory["task_weight"] = list(robot_spec.task_weight)
-    arm, task = generate_task(
-        robot, trajectory["generator"], trajectory["seed"], robot_spec.task_weight
-    )
-    duration = task.duration + config.duration.extra
-    if config.duration.max is not None:
-        duration = min(duration, config.duration.max)
+    built = which.build(config)
+    task, duration = built.task, built.duration
     try:
-        check_reachable(arm, task.trajectory, duration, "trajectory")
+        check_reachable(built.robot, task.trajectory, duration, "trajectory")
         out_of_reach = False
     except UnreachableTrajectory:
         out_of_reach = True

@@ -14,15 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
-from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.scenarios.generator import Task, TaskGenerator
-from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
-from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.oracle import (
     REFERENCE_INDEX,
     failed_columns,
@@ -31,15 +27,14 @@ from otmm_qp.studies.oracle import (
     task_reference,
 )
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
-from otmm_qp.studies.spec import plant_name
+from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, plant_name, study_episode
 from otmm_qp.studies.task_ids import entry_label, task_id
 
 #: Metrics that measure wall-clock time: they differ between runs and executors.
 TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")
 
 _configs: dict[str, tuple[StudyConfig, list[ControllerConfig]]] = {}
-_robots: dict[str, Robot] = {}
-_generators: dict[str, TaskGenerator] = {}
+_cache = BuildCache()
 
 
 @dataclass(frozen=True)
@@ -47,18 +42,12 @@ class WorkUnit:
     """One task and the episodes still to run on it.
 
     Attributes:
-        robot: Robot index in the study.
-        generator: Generator index.
-        task_index: Index of the task within its generator.
-        seed: Task seed.
+        task: Which task (robot, generator entry, index, seed).
         episodes: ``(key, controller index, loop mode)`` of each episode to run.
         time_series: Also return sampled time series.
     """
 
-    robot: int
-    generator: int
-    task_index: int
-    seed: int
+    task: StudyTask
     episodes: tuple[tuple[str, int, str], ...]
     time_series: bool = False
 
@@ -84,26 +73,6 @@ def _study(payload: dict[str, Any]) -> tuple[StudyConfig, list[ControllerConfig]
     return _configs[digest]
 
 
-def _robot(config: StudyConfig, index: int) -> Robot:
-    spec = config.robots[index]
-    key = json.dumps(spec.robot.model_dump(mode="json"), sort_keys=True)
-    if key not in _robots:
-        _robots[key] = registry.create(
-            registry.ROBOTS, spec.robot.type, spec.robot.params, f"robots.{index}.robot"
-        )
-    return _robots[key]
-
-
-def _generator(config: StudyConfig, index: int) -> TaskGenerator:
-    spec = config.generators[index]
-    key = json.dumps({"type": spec.type, **spec.params}, sort_keys=True, default=str)
-    if key not in _generators:
-        _generators[key] = registry.create(
-            registry.TASK_GENERATORS, spec.type, spec.params, f"generators.{index}"
-        )
-    return _generators[key]
-
-
 def one_line(error: BaseException) -> str:
     """``Type: message`` on one line."""
     text = " ".join(str(error).split())
@@ -123,18 +92,19 @@ def _base_row(
     controller: int,
     mode: str,
 ) -> dict[str, Any]:
-    gen = config.generators[unit.generator]
+    task = unit.task
+    gen = config.generators[task.generator]
     row: dict[str, Any] = {
         "study": config.name,
         "episode_key": key,
-        "task_id": task_id(config, unit.robot, unit.generator, unit.task_index),
+        "task_id": task_id(config, task.robot, task.generator, task.index),
         "episode_id": episode_id(key),
-        "robot": config.robots[unit.robot].name,
+        "robot": config.robots[task.robot].name,
         "generator": gen.type,
-        "generator_entry": entry_label(config, unit.generator),
+        "generator_entry": entry_label(config, task.generator),
         "generator_params": json.dumps(gen.params, sort_keys=True, default=str),
-        "task_index": unit.task_index,
-        "task_seed": unit.seed,
+        "task_index": task.index,
+        "task_seed": task.seed,
     }
     if controller == REFERENCE_INDEX:
         row.update(oracle_fields(config))
@@ -171,52 +141,12 @@ def _series(run: RunResult, key: str, stride: int) -> dict[str, Any]:
     }
 
 
-def _generate_task(
-    config: StudyConfig, unit: WorkUnit
-) -> tuple[Robot | None, FloatArray | None, Task | None, str | None]:
-    """The unit's robot, task weight and task, or (what was built and) the generation error."""
-    task: Task | None = None
-    task_error: str | None = None
-    robot: Robot | None = None
-    weight = None
+def _build(config: StudyConfig, unit: WorkUnit) -> tuple[BuiltTask | None, str | None]:
+    """The unit's built task, or the generation error (one line)."""
     try:
-        robot = _robot(config, unit.robot)
-        spec = config.robots[unit.robot]
-        weight = np.asarray(spec.task_weight, dtype=float) if spec.task_weight else None
-        task = _generator(config, unit.generator).generate(robot, unit.seed, weight)
+        return unit.task.build(config, _cache), None
     except (Exception, SystemExit) as error:  # a failed task is a row, never a stopped study
-        task_error = f"task generation: {one_line(error)}"
-    return robot, weight, task, task_error
-
-
-def _episode_duration(config: StudyConfig, task: Task) -> float:
-    """The task's duration plus the study's extra time, capped at its maximum [s]."""
-    duration = task.duration + config.duration.extra
-    if config.duration.max is not None:
-        duration = min(duration, config.duration.max)
-    return duration
-
-
-def study_episode(
-    config: StudyConfig, robot: Robot, task: Task, weight: FloatArray | None, mode: str
-) -> Episode:
-    """The :class:`Episode` of one task in one loop mode (checked like every run's).
-
-    Raises:
-        OtmmError: The task's start is outside the joint limits, or a value out of range
-            (e.g. more than ``max_steps`` steps).
-    """
-    return Episode(
-        robot,
-        task.trajectory,
-        robot.check_start(task.q0),
-        config.dt,
-        _episode_duration(config, task),
-        Loop(mode, config.clik_gain),  # type: ignore[arg-type]
-        weight,
-        config.name,
-        config.max_steps,
-    )
+        return None, f"task generation: {one_line(error)}"
 
 
 def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
@@ -227,43 +157,40 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
 
     config, controllers = _study(payload)
     settings = MetricSettings(**config.metrics.model_dump())
-    robot, weight, task, task_error = _generate_task(config, unit)
+    built, task_error = _build(config, unit)
     # The reference first: every controller row's stored ``success`` is judged with it, by
     # the rule the report applies (graceful criteria on the tasks it cannot meet).
     episodes = sorted(unit.episodes, key=lambda episode: episode[1] != REFERENCE_INDEX)
     reference: dict[str, Any] = {}
     if (
         config.reference.enabled
-        and task is not None
-        and robot is not None
+        and built is not None
         and all(controller != REFERENCE_INDEX for _, controller, _ in episodes)
     ):  # the task's reference row is stored already (a resumed study): solve it again
-        base = {"duration": _episode_duration(config, task)}
-        reference = task_reference(_oracle_row(config, base, robot, weight, task, base["duration"]))
+        reference = task_reference(_oracle_row(config, {"duration": built.duration}, built))
     for key, controller, mode in episodes:
         row = _base_row(config, controllers, unit, key, controller, mode)
-        if task is not None:
-            row.update({f"task.{k}": v for k, v in task.descriptors.items()})
-        if task is None or robot is None:
+        if built is not None:
+            row.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
+        if built is None:
             row.update(status="error", error_message=task_error, success=False)
             if controller == REFERENCE_INDEX:
                 row.update(failed_columns(str(task_error)), status="error")
             result.rows.append(row)
             continue
-        duration = _episode_duration(config, task)
-        row["duration"] = duration
+        row["duration"] = built.duration
         if controller == REFERENCE_INDEX:
-            oracle = _oracle_row(config, row, robot, weight, task, duration)
+            oracle = _oracle_row(config, row, built)
             reference = task_reference(oracle)
             result.rows.append(oracle)
             continue
         try:
-            built = build_controller(
+            made = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
             stage = build_stage(controllers[controller])
-            episode = study_episode(config, robot, task, weight, mode)
-            record = run_episode(episode, built, settings, stage)
+            episode = study_episode(config, built, mode)
+            record = run_episode(episode, made, settings, stage)
         except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
             row.update(status="error", error_message=one_line(error), success=False)
             result.rows.append(row)
@@ -279,17 +206,10 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             result.series.append(_series(run, key, config.time_series.stride))
 
 
-def _oracle_row(
-    config: StudyConfig,
-    row: dict[str, Any],
-    robot: Robot,
-    weight: FloatArray | None,
-    task: Task,
-    duration: float,
-) -> dict[str, Any]:
+def _oracle_row(config: StudyConfig, row: dict[str, Any], built: BuiltTask) -> dict[str, Any]:
     """The task's reference row (never raising: an unexpected error is a ``failed`` row)."""
     try:
-        row.update(oracle_columns(config, robot, weight, task, duration))
+        row.update(oracle_columns(config, built.robot, built.weight, built.task, built.duration))
     except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
         row.update(failed_columns(f"reference: {one_line(error)}"), success=False)
         return row

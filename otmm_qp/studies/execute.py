@@ -32,6 +32,7 @@ from otmm_qp.studies.storage import (
     study_id,
     write_marker,
 )
+from otmm_qp.studies.task import StudyTask
 
 #: Seconds allowed to connect to an external scheduler.
 CONNECT_TIMEOUT = 10.0
@@ -88,17 +89,14 @@ def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
         seeds[task] = episode.seed
     units = [
         WorkUnit(
-            task[0],
-            task[1],
-            task[2],
-            seeds[task],
+            StudyTask(task[0], task[1], task[2], seeds[task]),
             tuple(episodes),
             time_series=task[2] < config.time_series.tasks,
         )
         for task, episodes in by_task.items()
     ]
     # Round-robin over robots and generators, so a partial dataset covers all of them.
-    units.sort(key=lambda u: (u.task_index, u.robot, u.generator))
+    units.sort(key=lambda u: (u.task.index, u.task.robot, u.task.generator))
     size = config.chunk_size
     return [units[i : i + size] for i in range(0, len(units), size)]
 
@@ -286,7 +284,7 @@ def _run_claimed(
     outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
     chunks = make_chunks(plan, done)
     payload = payload_of(plan)
-    writer = PartWriter(out, ident)
+    writer = PartWriter(out, ident, plan.task_columns)
     written: set[str] = set(done)
     tic = time.perf_counter()
 

@@ -39,6 +39,9 @@ import numpy as np
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.metrics.table import metric
 from otmm_qp.output.pareto import dominates
+from otmm_qp.studies.columns import number
+from otmm_qp.studies.formatting import fmt as _fmt
+from otmm_qp.studies.formatting import p_value as _p
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test, wilcoxon_p
 
@@ -169,11 +172,8 @@ class GroupFront:
 
 
 def row_value(row: Row, name: str) -> float:
-    """A row's numeric ``name``; NaN when missing, not a number, or the run errored."""
-    value = row.get(name)
-    if row.get("status") == "error" or not isinstance(value, int | float):
-        return math.nan
-    return float(value)
+    """A row's numeric ``name`` (:func:`.columns.number`); NaN when the run errored."""
+    return math.nan if row.get("status") == "error" else number(row, name)
 
 
 def _values(rows: Iterable[Row], objective: str, key: TaskKey) -> dict[str, dict[Hashable, float]]:
@@ -275,14 +275,6 @@ def group_fronts(
         front_of(robot, generator, selected, objectives, key, resamples)
         for (robot, generator), selected in groups.items()
     ]
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.3g}" if math.isfinite(value) else "–"
-
-
-def _p(value: float) -> str:
-    return f"{value:.2g}" if math.isfinite(value) else "–"
 
 
 def _label(name: str, ours: Callable[[str], bool]) -> str:

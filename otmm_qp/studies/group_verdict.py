@@ -6,7 +6,7 @@ over the study's robots (``--kinds``: singular crossings, beyond-reach and limit
 as the report's verdicts choose them from the reference, plus held targets and reachable
 random targets by generator; a task can be in several)::
 
-    python -m otmm_qp.studies.group_verdict DIR --ours NAME [--kinds] [--out FILE]
+    otmm-qp study verdict DIR --ours NAME [--kinds] [--out FILE]
 
 Objectives: the headline accuracy (oracle-relative max error [m], or max error without a
 reference), the peak joint speed and the largest one-step jump [rad/s].
@@ -14,14 +14,10 @@ reference), the peak joint speed and the largest one-step jump [rad/s].
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
-from otmm_qp.exceptions import OtmmError
 from otmm_qp.metrics.table import metric
 from otmm_qp.studies.fronts import (
     GroupFront,
@@ -32,16 +28,8 @@ from otmm_qp.studies.fronts import (
     summary_table,
 )
 from otmm_qp.studies.oracle import REFERENCE_NAME
-from otmm_qp.studies.report import (
-    RESAMPLES,
-    Rows,
-    check_highlight,
-    load_rows,
-    objectives,
-    study_fronts,
-    task_groups,
-    task_key,
-)
+from otmm_qp.studies.rows import Rows, task_key
+from otmm_qp.studies.verdicts import RESAMPLES, objectives, task_groups
 
 #: Kinds of task chosen by generator (the reference-chosen ones come from ``task_groups``).
 GENERATOR_KINDS: tuple[tuple[str, str], ...] = (
@@ -138,31 +126,10 @@ def render(fronts: Sequence[GroupFront], ours: str, kinds: bool = False) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI entry: print (or write) the fronts of a study folder with ``--ours`` placed on them."""
-    parser = argparse.ArgumentParser(prog="python -m otmm_qp.studies.group_verdict")
-    parser.add_argument("study", type=Path)
-    parser.add_argument("--ours", required=True, help="the controller placed on the fronts")
-    parser.add_argument("--kinds", action="store_true", help="group by kind of task")
-    parser.add_argument("--out", type=Path, default=None)
-    args = parser.parse_args(argv)
-    try:
-        rows = load_rows(args.study)[1]
-        check_highlight(rows, args.ours, "--ours")
-        fronts = kind_fronts(rows) if args.kinds else study_fronts(rows)
-        text = render(fronts, args.ours, args.kinds)
-    except OtmmError as error:
-        print(f"group_verdict: error: {error}", file=sys.stderr)
-        return 2
-    if args.out is None:
-        try:
-            print(text)
-        except BrokenPipeError:  # e.g. `... | head`: the reader left
-            sys.stderr.close()
-    else:
-        from otmm_qp.output.paths import atomic_write_text
+    """Deprecated alias of ``otmm-qp study verdict`` (kept for one release)."""
+    from otmm_qp.cli import deprecated_alias
 
-        atomic_write_text(args.out, text + "\n")
-    return 0
+    return deprecated_alias("otmm_qp.studies.group_verdict", ["study", "verdict"], argv)
 
 
 if __name__ == "__main__":

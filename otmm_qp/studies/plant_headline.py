@@ -11,7 +11,7 @@ From the episode rows of a study with a ``plants`` axis (controllers named
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
 
-Run as ``python -m otmm_qp.studies.plant_headline RESULTS_DIR`` (prints Markdown).
+Run as ``otmm-qp study plants RESULTS_DIR`` (prints Markdown).
 """
 
 from __future__ import annotations
@@ -24,11 +24,12 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from otmm_qp.exceptions import ConfigError
 from otmm_qp.studies.oracle import REFERENCE_NAME
+from otmm_qp.studies.rows import read
 from otmm_qp.studies.statistics import holm, paired_test
-from otmm_qp.studies.storage import read_episodes
 
-__all__ = ["headline", "main"]
+__all__ = ["headline", "main", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
@@ -47,10 +48,19 @@ def _ranks(rate: dict[str, float], error: dict[str, float]) -> dict[str, int]:
 
 
 def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
-    """Markdown table and verdict lines of a plants study's episode rows (see the module)."""
+    """Markdown table and verdict lines of a plants study's episode rows (see the module).
+
+    Raises:
+        ConfigError: ``--reference``: no such plant in the rows.
+    """
     rows = [
         r for r in rows if r["controller"] != REFERENCE_NAME
     ]  # the offline reference: not a plant run
+    plants = list(dict.fromkeys(str(r["plant"]) for r in rows))
+    if reference not in plants:
+        raise ConfigError(
+            "--reference", f"no plant {reference!r:.40} in the study; have: {', '.join(plants)}"
+        )
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for row in rows:
         base = str(row["controller"]).rsplit("@", 1)[0]
@@ -117,19 +127,28 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     return "\n".join(lines) + "\n"
 
 
+def plant_rows(out: Path) -> list[dict[str, Any]]:
+    """The judged rows (:func:`otmm_qp.studies.rows.read`) of a study with a plants axis.
+
+    Parts left out (another study's, second copies...) are said on stderr, one line each.
+
+    Raises:
+        OtmmError: Not a study folder, or a study without a plants axis.
+    """
+    frame = read(out)
+    for line in frame.notes():
+        print(f"otmm-qp: {line}", file=sys.stderr)
+    rows = frame.table.select([c for c in COLUMNS if c in frame.table.column_names]).to_pylist()
+    if not any(r.get("plant") for r in rows if r["controller"] != REFERENCE_NAME):
+        raise ConfigError(str(out), "not a plants study (no episode rows with a plant)")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m otmm_qp.studies.plant_headline DIR``: print the headline; 2 on bad input."""
-    args = sys.argv[1:] if argv is None else argv
-    if len(args) != 1:
-        print("usage: python -m otmm_qp.studies.plant_headline RESULTS_DIR", file=sys.stderr)
-        return 2
-    table = read_episodes(Path(args[0]), COLUMNS) if Path(args[0]).is_dir() else None
-    if table is None or "plant" not in table.column_names:
-        print(f"otmm-qp: error: {args[0]}: not a plants study (no episode rows with a plant)",
-              file=sys.stderr)  # fmt: skip
-        return 2
-    print(headline(table.to_pylist()), end="")
-    return 0
+    """Deprecated alias of ``otmm-qp study plants`` (kept for one release)."""
+    from otmm_qp.cli import deprecated_alias
+
+    return deprecated_alias("otmm_qp.studies.plant_headline", ["study", "plants"], argv)
 
 
 if __name__ == "__main__":

@@ -21,50 +21,55 @@ import base64
 import io
 import math
 import re
-import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_OBJECTIVES, STUDY_PAIRED, Metric
+from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_PAIRED, Metric
 from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
-from otmm_qp.studies.criteria import FAILURE_CAUSES, failure_causes, is_achievable
-from otmm_qp.studies.drilldown import episode_id
+from otmm_qp.studies.columns import number
+from otmm_qp.studies.criteria import FAILURE_CAUSES
+from otmm_qp.studies.formatting import fmt as _fmt
+from otmm_qp.studies.formatting import p_value as _p
+from otmm_qp.studies.formatting import percent as _pct
 from otmm_qp.studies.fronts import (
     GroupFront,
     counts_sentence,
     detail_table,
-    group_fronts,
     summary_table,
 )
-from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
+from otmm_qp.studies.oracle import REFERENCE_NAME
+from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import (
     ALPHA,
     Interval,
     PairedRates,
-    PairedResult,
     Ranked,
     binned_medians,
     bootstrap_interval,
-    paired_comparisons,
     paired_ranking,
     paired_success,
     significant_digits,
     wilson_interval,
 )
-from otmm_qp.studies.storage import read_study_folder
+from otmm_qp.studies.verdicts import (
+    RESAMPLES,
+    TaskGroup,
+    check_highlight,
+    decide_group,
+    median_intervals,
+    paired_for,
+    study_fronts,
+    success_flags,
+    task_groups,
+)
+from otmm_qp.studies.verdicts import accuracy_verdict as decide_accuracy
 
-#: Oracle-relative error column computed for every controller row [m].
-RELATIVE_ERROR = metric_row("oracle_relative_error").name
-#: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
-RESAMPLES = 2000
 #: Metrics summarised by median + bootstrap interval (rows of the metric table).
 MEDIAN_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_MEDIANS))
 #: Metrics compared pairwise after the headline accuracy (rows of the metric table).
@@ -73,72 +78,19 @@ PAIRED_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_PAIRED))
 SIGMA_BINS = 6
 
 
-@dataclass
-class Rows:
-    """Episode rows as Python dicts, with success and failure causes recomputed.
-
-    ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
-    (select them with ``controller=REFERENCE_NAME``).
-    """
-
-    rows: list[dict[str, Any]]
-
-    def controllers(self) -> list[str]:
-        """Competing controllers in first-seen order (the reference excluded)."""
-        return list(dict.fromkeys(r["controller"] for r in self.rows if not _is_oracle(r)))
-
-    def robots(self) -> list[str]:
-        """Robots in first-seen order."""
-        return list(dict.fromkeys(r["robot"] for r in self.rows))
-
-    def select(self, **equal: Any) -> list[dict[str, Any]]:
-        """Rows whose columns equal the given values."""
-        return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
-
-    @property
-    def has_reference(self) -> bool:
-        """Whether any task has an offline reference."""
-        return any(_is_oracle(r) or _known(r.get("reference.achievable")) for r in self.rows)
-
-    def accuracy_metric(self) -> str:
-        """The headline accuracy column: oracle-relative error, or max error without reference."""
-        return RELATIVE_ERROR if self.has_reference else "max_error"
-
-
 def _is_oracle(row: dict[str, Any]) -> bool:
-    return row.get("controller") == REFERENCE_NAME
+    return is_reference(row)
 
 
 def _known(value: Any) -> bool:
     return value is not None and not (isinstance(value, float) and math.isnan(value))
 
 
-def _value(row: dict[str, Any], name: str) -> float:
-    value = row.get(name)
-    if value is None or isinstance(value, str):
-        return math.nan
-    return float(value)
-
-
-def task_key(row: dict[str, Any]) -> tuple[object, ...]:
-    """The task an episode ran on (``task_id`` when stored) and its loop mode."""
-    task = row.get("task_id") or (
-        row["robot"],
-        row["generator"],
-        row.get("generator_params"),
-        row["task_index"],
-    )
-    return (task, row["loop_mode"])
+_value = number
 
 
 def _task(row: dict[str, Any]) -> object:
-    return task_key(row)[0]
-
-
-def _fmt(value: float, digits: int = 3) -> str:
-    if not math.isfinite(value):
-        return "–"
-    return f"{value:.{digits}g}"
+    return task_of(row)
 
 
 def _interval(value: float | Interval, low: float = math.nan, high: float = math.nan) -> str:
@@ -147,52 +99,6 @@ def _interval(value: float | Interval, low: float = math.nan, high: float = math
         digits = [significant_digits(e, value.mc_error) for e in (value.low, value.high)]
         return f"{_fmt(value.value)} [{_fmt(value.low, digits[0])}, {_fmt(value.high, digits[1])}]"
     return f"{_fmt(value)} [{_fmt(low)}, {_fmt(high)}]"
-
-
-def join_reference(rows: list[dict[str, Any]]) -> None:
-    """Copy each ``oracle`` row's ``reference.*`` columns onto the rows of its task, in place.
-
-    Columns already on a row are kept; ``reference.max_error`` falls back to the oracle row's
-    ``max_error`` and ``reference.final_error`` is its ``final_error``. Then every row gets
-    :data:`RELATIVE_ERROR` = ``max_error − reference.max_error`` (NaN without a reference).
-    """
-    references: dict[object, dict[str, Any]] = {}
-    for row in rows:
-        if not _is_oracle(row):
-            continue
-        references[_task(row)] = task_reference(row)
-    for row in rows:
-        for name, value in references.get(_task(row), {}).items():
-            if not _known(row.get(name)):
-                row[name] = value
-        row[RELATIVE_ERROR] = _value(row, "max_error") - _value(row, "reference.max_error")
-
-
-def load_rows(out: Path) -> tuple[StudyConfig, Rows]:
-    """The study config and its rows: references joined, success and causes recomputed.
-
-    Only the rows of this study and plan are read (``study.json``).
-
-    What the reader left out (other studies' parts, symlinks, duplicates...) is printed on
-    stderr, one line per reason.
-
-    Raises:
-        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
-    """
-    config, data = read_study_folder(out)
-    for line in data.ignored:
-        print(f"otmm-qp: report ignored {line}", file=sys.stderr)
-    if data.table is None or data.table.num_rows == 0:
-        raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = data.table.to_pylist()
-    join_reference(rows)
-    for row in rows:
-        if not row.get("episode_id"):
-            row["episode_id"] = episode_id(str(row.get("episode_key", "")))
-        causes = () if _is_oracle(row) else failure_causes(row, config.success)
-        row["failure_causes"] = causes
-        row["success"] = not causes
-    return config, Rows(rows)
 
 
 def _median_metrics(rows: Rows) -> tuple[Metric, ...]:
@@ -257,178 +163,52 @@ def generator_table(rows: Rows) -> list[str]:
     return lines
 
 
-def median_intervals(rows: Rows, robot: str, metric: str) -> dict[str, Interval]:
-    """``controller → median [interval]`` of ``metric`` on ``robot`` (the oracle included)."""
-    out = {}
-    for name in [*rows.controllers(), REFERENCE_NAME]:
-        selected = rows.select(controller=name, robot=robot)
-        if selected:
-            values = np.array([_value(r, metric) for r in selected])
-            out[name] = bootstrap_interval(values, seed=0, resamples=RESAMPLES)
-    return out
-
-
-def paired_for(rows: Rows, robot: str, metric: str) -> list[PairedResult]:
-    """Paired comparisons of every controller pair on ``robot``'s tasks (no oracle)."""
-    values: dict[str, dict[tuple[object, ...], float]] = {}
-    for row in rows.select(robot=robot):
-        value = _value(row, metric)
-        if math.isfinite(value) and not _is_oracle(row) and row.get("status") != "error":
-            values.setdefault(row["controller"], {})[task_key(row)] = value
-    return paired_comparisons(values, seed=0, resamples=RESAMPLES)
-
-
-def success_flags(selected: list[dict[str, Any]]) -> dict[str, dict[tuple[object, ...], bool]]:
-    """``controller → {task key → success}`` of the competitors among ``selected``."""
-    flags: dict[str, dict[tuple[object, ...], bool]] = {}
-    for row in selected:
-        if not _is_oracle(row):
-            flags.setdefault(row["controller"], {})[task_key(row)] = bool(row["success"])
-    return flags
-
-
-@dataclass(frozen=True)
-class TaskGroup:
-    """A kind of motion a verdict is given for: a label, how its tasks are chosen, its rows."""
-
-    label: str
-    reading: str
-    rows: list[dict[str, Any]]
-
-
-def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
-    """Singular crossings, beyond-reach and limit-bound tasks of ``robot``'s competitor rows.
-
-    With a reference: ``reference.near_singular`` and achievable, ``reference.achievable``
-    false, ``reference.touches_position_limit``; without one, by generator (``near_singular``
-    and ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
-    """
-    own = [r for r in rows.select(robot=robot) if not _is_oracle(r)]
-    if rows.has_reference:
-
-        def flag(row: dict[str, Any], name: str) -> bool:
-            value = row.get(name)
-            return _known(value) and bool(value)
-
-        return [
-            TaskGroup(
-                "singular crossings",
-                "tasks whose reference passes near a singularity (σ_min < σ_S) and is achievable",
-                [
-                    r
-                    for r in own
-                    if flag(r, "reference.near_singular") and flag(r, "reference.achievable")
-                ],
-            ),
-            TaskGroup(
-                "beyond-reach motion",
-                "tasks the reference finds unachievable (judged by the graceful criteria)",
-                [r for r in own if not is_achievable(r)],
-            ),
-            TaskGroup(
-                "limit-bound motion",
-                "tasks whose reference touches a position limit",
-                [r for r in own if flag(r, "reference.touches_position_limit")],
-            ),
-        ]
-    return [
-        TaskGroup(
-            "singular crossings",
-            "generators near_singular and joint_path (no reference stored)",
-            [r for r in own if r["generator"] in ("near_singular", "joint_path")],
-        ),
-        TaskGroup(
-            "beyond-reach motion",
-            "generator beyond_reach (no reference stored)",
-            [r for r in own if r["generator"] == "beyond_reach"],
-        ),
-        TaskGroup(
-            "limit-bound motion",
-            "needs the offline reference (which tasks touch a limit); none stored",
-            [],
-        ),
-    ]
-
-
-def _rate(flags: dict[tuple[object, ...], bool]) -> tuple[float, int]:
-    return (sum(flags.values()) / len(flags) if flags else math.nan), len(flags)
-
-
-def _pct(value: float) -> str:
-    return f"{100 * value:.0f} %" if math.isfinite(value) else "–"
-
-
-def _p(value: float) -> str:
-    return f"{value:.2g}" if math.isfinite(value) else "–"
-
-
 def group_verdict(group: TaskGroup) -> str:
-    """One plain-words verdict line: whom to pick for the group, with the paired evidence."""
-    tasks = len({task_key(r) for r in group.rows})
-    head = f"- **{group.label.capitalize()}** ({tasks} tasks: {group.reading}): "
-    if not group.rows:
+    """One plain-words verdict line of :func:`~otmm_qp.studies.verdicts.decide_group`."""
+    verdict = decide_group(group)
+    head = f"- **{group.label.capitalize()}** ({verdict.tasks} tasks: {group.reading}): "
+    rates = verdict.rates
+    if verdict.outcome == "no tasks":
         return head + "no such tasks in this study."
-    flags = success_flags(group.rows)
-    rates = {name: _rate(f)[0] for name, f in flags.items()}
-    tests = paired_success(flags)
-    ranking = paired_ranking(rates, tests, higher_is_better=True)
-    if len(rates) == 1:
-        name, rate = next(iter(rates.items()))
-        return head + f"only {name} ran (success {_pct(rate)})."
-    if all(rate == 0.0 for rate in rates.values()):
+    if verdict.outcome == "single":
+        return head + f"only {verdict.pick} ran (success {_pct(rates[str(verdict.pick)])})."
+    if verdict.outcome == "none succeeds":
         return head + "no controller succeeds on any of them."
-    top = [r for r in ranking if r.rank == 1]
-    best = max(top, key=lambda r: (rates[r.name], r.name))
-    if len(top) == len(ranking):
+    if verdict.outcome == "not separated":
         return (
             head
             + "no paired test separates the controllers, so none is to be preferred here ("
             + ", ".join(
                 f"{r.name} {_pct(rates[r.name])}"
-                for r in sorted(ranking, key=lambda r: (-rates[r.name], r.name))
+                for r in sorted(verdict.ranking, key=lambda r: (-rates[r.name], r.name))
             )
             + ")."
         )
-    text = head + f"pick **{best.name}** (success {_pct(rates[best.name])})"
-    others = [r for r in top if r.name != best.name]
-    if others:
+    best = str(verdict.pick)
+    text = head + f"pick **{best}** (success {_pct(rates[best])})"
+    if verdict.not_separated:
         text += "; not separated from it by the paired test: " + ", ".join(
-            f"{r.name} ({_pct(rates[r.name])})" for r in others
+            f"{name} ({_pct(rates[name])})" for name in verdict.not_separated
         )
-    beaten = [r for r in ranking if best.name in r.beaten_by]
-    if beaten:
-        runner = max(beaten, key=lambda r: (rates[r.name], r.name))
-        test = _find_test(tests, best.name, runner.name)
-        mine, theirs = (
-            (test.a_only, test.b_only) if test.a == best.name else (test.b_only, test.a_only)
-        )
+    closest = verdict.closest
+    if closest is not None:
         text += (
-            f"; it beats {len(beaten)} of the others, the closest {runner.name} "
-            f"({_pct(rates[runner.name])}: {best.name} alone succeeds on {mine} tasks, "
-            f"{runner.name} alone on {theirs}, McNemar Holm p = {_p(test.p_holm)})"
+            f"; it beats {verdict.beaten} of the others, the closest {closest.name} "
+            f"({_pct(rates[closest.name])}: {best} alone succeeds on {closest.pick_only} tasks, "
+            f"{closest.name} alone on {closest.other_only}, McNemar Holm p = "
+            f"{_p(closest.p_holm)})"
         )
     return text + "."
 
 
-def _find_test(tests: list[PairedRates], a: str, b: str) -> PairedRates:
-    return next(t for t in tests if {t.a, t.b} == {a, b})
-
-
 def accuracy_verdict(rows: Rows, robot: str) -> str:
-    """The most accurate controller by the paired Wilcoxon test of the headline accuracy."""
-    metric = rows.accuracy_metric()
-    label = "oracle-relative max error" if metric == RELATIVE_ERROR else "max error"
-    results = paired_for(rows, robot, metric)
-    medians = {
-        name: interval
-        for name, interval in median_intervals(rows, robot, metric).items()
-        if name != REFERENCE_NAME and math.isfinite(interval.value)
-    }
-    if not medians:
+    """The verdict line of :func:`~otmm_qp.studies.verdicts.accuracy_verdict`."""
+    verdict = decide_accuracy(rows, robot)
+    label = "oracle-relative max error" if verdict.relative else "max error"
+    if not verdict.top:
         return f"- **Accuracy ({label})**: no finite values."
-    ranking = paired_ranking({n: m.value for n, m in medians.items()}, results)
-    top = [r for r in ranking if r.rank == 1]
-    shown = ", ".join(f"{r.name} {_interval(medians[r.name])} m" for r in top[:4])
+    top = verdict.top
+    shown = ", ".join(f"{name} {_interval(verdict.medians[name])} m" for name in top[:4])
     more = f" (+{len(top) - 4} more)" if len(top) > 4 else ""
     return (
         f"- **Accuracy ({label}, median [95 % CI])**: lowest, not beaten in any paired "
@@ -450,29 +230,6 @@ def _ranking_line(ranking: list[Ranked], what: str, test: str) -> str:
         "each; it does not say the two are indistinguishable): "
         + ", ".join(f"{r.rank}{'=' if r.tied else ''} {r.name}" for r in ranking)
     )
-
-
-def objectives(rows: Rows) -> tuple[str, ...]:
-    """The Pareto objectives: the headline accuracy, then :data:`STUDY_OBJECTIVES`."""
-    return (rows.accuracy_metric(), *STUDY_OBJECTIVES)
-
-
-def study_fronts(rows: Rows) -> list[GroupFront]:
-    """The Pareto front of every robot × generator group (see :mod:`otmm_qp.studies.fronts`)."""
-    return group_fronts(rows.rows, objectives(rows), task_key, resamples=RESAMPLES)
-
-
-def check_highlight(rows: Rows, highlight: str | None, option: str = "--highlight") -> None:
-    """Refuse a ``--highlight`` (or ``option``) that names no controller of the study.
-
-    Raises:
-        ConfigError: ``highlight`` is not one of :meth:`Rows.controllers`.
-    """
-    if highlight is not None and highlight not in rows.controllers():
-        raise ConfigError(
-            option,
-            f"no controller {highlight!r:.60} in the study; have: {', '.join(rows.controllers())}",
-        )
 
 
 def render_markdown(

@@ -7,6 +7,7 @@ stored episodes and a changed setting makes a new episode.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+import pyarrow as pa
 
 from otmm_qp import registry
 from otmm_qp.config.base import PluginConfig
@@ -22,8 +23,10 @@ from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
+from otmm_qp.studies.columns import descriptor_type
 from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
+from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, study_episode
 from otmm_qp.studies.task_ids import check_entries, seed_name
 
 
@@ -201,13 +204,6 @@ def _plant_axis(config: StudyConfig) -> list[tuple[str | None, Any]]:
     return [(p.name, plant_record(p.plant)) for p in config.plants]
 
 
-def plant_name(config: ControllerConfig) -> str:
-    """The ``plants`` label of an expanded controller (``ideal`` without a plants axis)."""
-    if config.plant is None:
-        return "ideal"
-    return config.name.rsplit("@", 1)[1] if "@" in config.name else "controller's own"
-
-
 def controller_record(config: ControllerConfig) -> dict[str, Any]:
     """JSON-ready record of a controller (name, filters, backend with parameters).
 
@@ -254,12 +250,15 @@ class StudyPlan:
         controllers: Expanded controllers (available ones only).
         skipped: ``(name, reason)`` of controllers whose peer library is missing.
         episodes: Every episode in a fixed order.
+        task_columns: Arrow types of the ``task.*`` descriptor columns of the generators'
+            first tasks (every part stores them, see :mod:`otmm_qp.studies.columns`).
     """
 
     config: StudyConfig
     controllers: list[ControllerConfig]
     skipped: list[tuple[str, str]]
     episodes: list[Episode]
+    task_columns: dict[str, pa.DataType] = dataclasses.field(default_factory=dict)
 
     def payload(self) -> dict[str, Any]:
         """JSON-ready description the workers rebuild everything from."""
@@ -320,7 +319,7 @@ def oracle_key(config: StudyConfig, robot: int, generator: int, index: int, seed
 
 def check_plugins(
     config: StudyConfig, controllers: list[ControllerConfig], source: str
-) -> list[tuple[str, str]]:
+) -> tuple[list[tuple[str, str]], dict[str, Any]]:
     """Build every robot, generator and controller once so bad input fails before any work.
 
     Each robot is built once; each generator draws its first task on each robot (a generator
@@ -329,7 +328,8 @@ def check_plugins(
     task, whose episode also meets the step cap.
 
     Returns:
-        ``(name, reason)`` of controllers skipped because their peer library is missing.
+        ``(name, reason)`` of controllers skipped because their peer library is missing, and
+        the ``task.*`` descriptors of the first tasks (their names and example values).
 
     Raises:
         ConfigError: Unknown plugin or parameter, a controller that does not fit a robot, or
@@ -337,7 +337,6 @@ def check_plugins(
     """
     from otmm_qp.runner.build import build_controller, load_robot
     from otmm_qp.runner.prepare import prepare
-    from otmm_qp.studies.episodes import study_episode
 
     robots = [
         load_robot(spec.robot, f"{source}: robots.{i}.robot")
@@ -347,7 +346,13 @@ def check_plugins(
         registry.create(registry.TASK_GENERATORS, gen.type, gen.params, f"{source}: generators.{j}")
         for j, gen in enumerate(config.generators)
     ]
+    cache = BuildCache()  # the tasks are built from these robots and generators
+    for i, robot in enumerate(robots):
+        cache.robots[BuildCache.robot_key(config, i)] = robot
+    for j, generator in enumerate(generators):
+        cache.generators[BuildCache.generator_key(config, j)] = generator
     built, skipped = [], []
+    descriptors: dict[str, Any] = {}
     for k, controller in enumerate(controllers):
         try:
             built.append(
@@ -360,22 +365,17 @@ def check_plugins(
         except PeerUnavailable as error:
             skipped.append((controller.name, str(error)))
     for i, (spec, robot) in enumerate(zip(config.robots, robots, strict=True)):
-        weight = None
-        if spec.task_weight is not None:
-            if len(spec.task_weight) != robot.task_dim:
-                raise ConfigError(
-                    f"{source}: robots.{i}.task_weight",
-                    f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
-                )
-            weight = np.asarray(spec.task_weight, dtype=float)
-        tasks = [
-            _first_task(config, spec.name, j, generator, robot, weight, source)
-            for j, generator in enumerate(generators)
-        ]
-        first = tasks[0]
+        if spec.task_weight is not None and len(spec.task_weight) != robot.task_dim:
+            raise ConfigError(
+                f"{source}: robots.{i}.task_weight",
+                f"expected {robot.task_dim} weights, got {len(spec.task_weight)}",
+            )
+        tasks = [_first_task(config, i, j, cache, source) for j in range(len(generators))]
+        for made in tasks:
+            descriptors.update({f"task.{k}": v for k, v in made.task.descriptors.items()})
         field = f"{source}: robots.{i} ({spec.name}) first task of generators.0"
         try:
-            episode = study_episode(config, robot, first, weight, config.loop_modes[0])
+            episode = study_episode(config, tasks[0], config.loop_modes[0])
         except ConfigError as error:
             where = "duration" if error.field == "duration" else error.field
             raise ConfigError(f"{field}: {where}", error.message) from None
@@ -383,7 +383,7 @@ def check_plugins(
             raise ConfigError(field, str(error)) from None
         prepare(episode, built, f"{source}: robots.{i}", reachable=False)
         _check_stages(config, controllers, robot, episode.q0, source)
-    return skipped
+    return skipped, descriptors
 
 
 def _check_stages(
@@ -407,19 +407,13 @@ def _check_stages(
 
 
 def _first_task(
-    config: StudyConfig,
-    robot_name: str,
-    index: int,
-    generator: Any,
-    robot: Any,
-    weight: Any,
-    source: str,
-) -> Any:
-    """The generator's first task on ``robot``; a generator that cannot work on it is refused."""
+    config: StudyConfig, robot: int, index: int, cache: BuildCache, source: str
+) -> BuiltTask:
+    """Entry ``index``'s first task on ``robot``; a generator that cannot work on it is refused."""
     gen = config.generators[index]
-    seed = task_seed(config.seed, robot_name, seed_name(config, index), 0)
+    seed = task_seed(config.seed, config.robots[robot].name, seed_name(config, index), 0)
     try:
-        return generator.generate(robot, seed, weight)
+        return StudyTask(robot, index, 0, seed).build(config, cache)
     except TaskGenerationError as error:
         raise ConfigError(f"{source}: generators.{index} ({gen.type})", str(error)) from None
 
@@ -433,7 +427,7 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     check_plan_size(config, source)
     check_entries(config, source)
     controllers = expand_controllers(config, source)
-    skipped = check_plugins(config, controllers, source)
+    skipped, descriptors = check_plugins(config, controllers, source)
     skipped_names = {name for name, _ in skipped}
     controllers = [c for c in controllers if c.name not in skipped_names]
     if not controllers:
@@ -451,4 +445,5 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)
                         episodes.append(Episode(key, r, g, index, seed, c, mode))
-    return StudyPlan(config, controllers, skipped, episodes)
+    task_columns = {name: descriptor_type([value]) for name, value in descriptors.items()}
+    return StudyPlan(config, controllers, skipped, episodes, task_columns)

@@ -36,6 +36,13 @@ import pyarrow.parquet as pq
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.output.folders import remove_kind_files
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside
+from otmm_qp.studies.columns import (
+    SCHEMA_VERSION,
+    SCHEMA_VERSION_KEY,
+    episode_schema,
+    episode_table,
+    extra_columns,
+)
 
 if TYPE_CHECKING:
     from otmm_qp.studies.schema import StudyConfig
@@ -47,6 +54,8 @@ SERIES = "timeseries"
 STUDY_ID_KEY = b"otmm_qp.study_id"
 #: Largest ``study.json`` read [bytes].
 MAX_MARKER_BYTES = 64 * 1024 * 1024
+#: Largest Parquet part read [bytes].
+MAX_PART_BYTES = 2 * 1024**3
 
 
 class StudyDirectoryError(ConfigError):
@@ -69,7 +78,10 @@ def _read_regular(path: Path, limit: int) -> bytes:
         if info.st_size > limit:
             raise OSError(0, f"larger than {limit} bytes")
         with os.fdopen(fd, "rb", closefd=False) as handle:
-            return handle.read(limit + 1)
+            data = handle.read(info.st_size + 1)  # a buffer sized to the file, never to limit
+        if len(data) > limit:
+            raise OSError(0, f"larger than {limit} bytes")
+        return data
     finally:
         os.close(fd)
 
@@ -145,24 +157,20 @@ def write_marker(out: Path, record: dict[str, Any]) -> None:
         raise StudyDirectoryError(str(out / MARKER), f"cannot write: {error.strerror}") from None
 
 
-def _table(rows: list[dict[str, Any]]) -> pa.Table:
-    columns: list[str] = []
-    for row in rows:
-        for name in row:
-            if name not in columns:
-                columns.append(name)
-    return pa.Table.from_pylist([{c: row.get(c) for c in columns} for row in rows])
-
-
 class PartWriter:
     """Writes numbered Parquet parts of one run into ``out/episodes`` and ``out/timeseries``.
 
-    Each part carries ``study`` (a :func:`study_id`) in its Parquet metadata.
+    Each part carries ``study`` (a :func:`study_id`) and the schema version in its Parquet
+    metadata; episode parts have the declared schema (:mod:`otmm_qp.studies.columns`) plus
+    every ``task.*`` column known so far (``task_columns``, then those the rows bring).
     """
 
-    def __init__(self, out: Path, study: str = "") -> None:
+    def __init__(
+        self, out: Path, study: str = "", task_columns: dict[str, pa.DataType] | None = None
+    ) -> None:
         self.out = out
         self.study = study
+        self.task_columns = dict(task_columns or {})
         self.run = time.strftime("%Y%m%dT%H%M%S") + f"-{time.time_ns() % 1_000_000:06d}"
         self.count = 0
 
@@ -189,7 +197,8 @@ class PartWriter:
         """Write one part of episode rows (and one of time series, if any)."""
         if not rows:
             return
-        self._write(EPISODES, _table(rows))
+        self.task_columns = extra_columns(rows, self.task_columns)
+        self._write(EPISODES, episode_table(rows, self.task_columns))
         if series:
             merged: dict[str, list[Any]] = {}
             for block in series:
@@ -206,10 +215,13 @@ class StudyData:
     Attributes:
         table: The rows (one per episode key, first stored copy), or None when there are none.
         ignored: One line per reason something was left out (part names cut, counts).
+        older: Parts read that were written before the declared schema (their types were
+            inferred per part; they are read with the declared ones).
     """
 
     table: pa.Table | None
     ignored: list[str] = field(default_factory=list)
+    older: int = 0
 
 
 def _part_study(part: pq.ParquetFile) -> str | None:
@@ -219,8 +231,30 @@ def _part_study(part: pq.ParquetFile) -> str | None:
 
 
 def _open_part(path: Path) -> pq.ParquetFile:
-    """A Parquet file opened without following symlinks (at most 2 GiB)."""
-    return pq.ParquetFile(io.BytesIO(_read_regular(path, 2 * 1024**3)))
+    """A Parquet part opened without following symlinks, in a buffer sized to it (<= 2 GiB)."""
+    return pq.ParquetFile(pa.BufferReader(_read_regular(path, MAX_PART_BYTES)))
+
+
+def conform(table: pa.Table) -> pa.Table:
+    """An episode part with every declared column, in the declared types (nulls where absent).
+
+    Undeclared columns (``task.*`` descriptors) follow, as stored.
+
+    Raises:
+        pyarrow.ArrowException: A stored column cannot be cast to its declared type.
+    """
+    schema = episode_schema()
+    names = set(table.column_names)
+    arrays = [
+        table.column(f.name).cast(f.type) if f.name in names else pa.nulls(len(table), f.type)
+        for f in schema
+    ]
+    fields = list(schema.remove_metadata())
+    for name in table.column_names:
+        if schema.get_field_index(name) < 0:
+            arrays.append(table.column(name))
+            fields.append(table.schema.field(name))
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields))
 
 
 def _key_column(table: pa.Table) -> list[Any] | None:
@@ -261,6 +295,7 @@ def read_study(
     tables: list[pa.Table] = []
     schema: pa.Schema | None = None
     seen: set[str] = set()
+    older = 0
     for path in sorted(directory.iterdir()):
         if not (path.name.startswith("part-") and path.name.endswith(".parquet")):
             continue
@@ -276,11 +311,20 @@ def read_study(
         except (OSError, pa.ArrowException, ValueError):
             ignored["unreadable or non-Parquet parts"] += 1
             continue
+        version = (table.schema.metadata or {}).get(SCHEMA_VERSION_KEY)
         table = table.replace_schema_metadata(None)
         key_values = _key_column(table)
         if key_values is None:
             ignored["parts without a text episode_key column (not otmm-qp parts)"] += 1
             continue
+        if folder == EPISODES:
+            if version != str(SCHEMA_VERSION).encode("ascii"):
+                older += 1
+            try:
+                table = conform(table)
+            except (pa.ArrowException, ValueError):
+                ignored["parts whose column types clash with the declared ones"] += 1
+                continue
         if columns is not None:
             table = table.select([c for c in columns if c in table.column_names])
         try:
@@ -310,8 +354,8 @@ def read_study(
         schema = merged
     lines = [f"{count} {reason}" for reason, count in ignored.items()]
     if not tables:
-        return StudyData(None, lines)
-    return StudyData(pa.concat_tables(tables, promote_options="permissive"), lines)
+        return StudyData(None, lines, older)
+    return StudyData(pa.concat_tables(tables, promote_options="permissive"), lines, older)
 
 
 def _marker_scope(out: Path) -> tuple[str | None, set[str] | None]:
@@ -353,7 +397,8 @@ def read_study_folder(out: Path) -> tuple[StudyConfig, StudyData]:
     """The validated config of the study in ``out`` and its episode rows (this study's only).
 
     Raises:
-        StudyDirectoryError: No ``study.json``, or one without a valid study config.
+        StudyDirectoryError: No ``study.json``, one without a valid study config, or one whose
+            config is not the one its ``study_id`` was computed from (edited by hand).
     """
     from pydantic import ValidationError
 
@@ -373,6 +418,12 @@ def read_study_folder(out: Path) -> tuple[StudyConfig, StudyData]:
             str(out / MARKER), f"config.{where}: {first['msg']}"[:300]
         ) from None
     ident, keys = _marker_scope(out)
+    if ident is not None and study_id(config.model_dump(mode="json")) != ident:
+        raise StudyDirectoryError(
+            str(out / MARKER),
+            f"its config does not hash to its study_id {ident!r:.20} (edited by hand?); "
+            "re-run the study from its YAML file instead",
+        )
     return config, read_study(out, EPISODES, ident, keys)
 
 

@@ -5,7 +5,7 @@ For a stored study, per group of tasks (robot × generator, or a kind of task as
 **calm** one (default: the front's lowest median peak joint speed,
 :meth:`GroupFront.best_on` of ``max_joint_speed``) and the **accurate** one (default: the
 lowest median oracle-relative max error). On every task *i* both ran, rebuild the task exactly
-as the study did (:func:`otmm_qp.studies.episodes._generate_task`, same seed, weight and
+as the study did (:meth:`otmm_qp.studies.task.StudyTask.build`, same seed, weight and
 duration) and solve the offline reference (:func:`otmm_qp.reference.solve_reference`, the
 study's own tolerances and budget) with the speed cap
 
@@ -39,28 +39,27 @@ speed is 0 gets the cap :data:`SPEED_FLOOR` (the solver needs a positive one).
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from otmm_qp.exceptions import ConfigError, OtmmError
+from otmm_qp.exceptions import ConfigError
 from otmm_qp.reference import ReferenceResult, solve_reference
 from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
-from otmm_qp.studies.episodes import WorkUnit, _episode_duration, _generate_task
+from otmm_qp.studies.formatting import fmt as _fmt
 from otmm_qp.studies.fronts import GroupFront, front_of, row_value
 from otmm_qp.studies.oracle import REFERENCE_NAME, reference_settings
-from otmm_qp.studies.report import RESAMPLES, Rows, load_rows, objectives, task_key
+from otmm_qp.studies.rows import Rows, task_key
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.statistics import ALPHA, PairedResult, holm, paired_test
-from otmm_qp.studies.task_ids import entry_label
+from otmm_qp.studies.task import StudyTask
+from otmm_qp.studies.verdicts import RESAMPLES, objectives
 
 #: How tasks are grouped: per robot × generator, or per kind of task pooled over robots.
 GROUPINGS: tuple[str, ...] = ("generator", "kind")
@@ -155,25 +154,15 @@ def rebuild_task(config: StudyConfig, row: Row) -> tuple[Robot, FloatArray | Non
         ConfigError: The row's robot or generator entry is not in the study, or the task
             cannot be generated again.
     """
-    robots = [r.name for r in config.robots]
-    labels = [entry_label(config, j) for j in range(len(config.generators))]
-    if row.get("robot") not in robots:
-        raise ConfigError("study.json", f"robot {row.get('robot')!r} of a row is not in the study")
-    if row.get("generator_entry") not in labels:
+    task = StudyTask.of_row(config, row)
+    try:
+        built = task.build(config)
+    except Exception as error:  # noqa: BLE001 - a plugin's failure, said in one line
+        reason = " ".join(str(error).split())[:200]
         raise ConfigError(
-            "study.json", f"generator entry {row.get('generator_entry')!r} is not in the study"
-        )
-    unit = WorkUnit(
-        robots.index(row["robot"]),
-        labels.index(row["generator_entry"]),
-        int(row["task_index"]),
-        int(row["task_seed"]),
-        (),
-    )
-    robot, weight, task, error = _generate_task(config, unit)
-    if robot is None or task is None:
-        raise ConfigError(str(row.get("task_id")), f"cannot rebuild the task: {error}")
-    return robot, weight, task, _episode_duration(config, task)
+            str(row.get("task_id")), f"cannot rebuild the task: {type(error).__name__}: {reason}"
+        ) from None
+    return built.robot, built.weight, built.task, built.duration
 
 
 def resolution(config: StudyConfig) -> float:
@@ -366,10 +355,6 @@ def _finite_p(test: PairedResult) -> float:
     return test.p_value if math.isfinite(test.p_value) else 1.0
 
 
-def _fmt(value: float) -> str:
-    return f"{value:.3g}" if math.isfinite(value) else "–"
-
-
 def _counts(test: PairedResult) -> str:
     return f"{test.lower}/{test.ties}/{test.higher}"
 
@@ -438,49 +423,11 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
     return "\n".join(lines)
 
 
-def _tasks_option(text: str | None) -> int | None:
-    if text is None:
-        return None
-    try:
-        value = int(text)
-    except ValueError:
-        raise ConfigError("--tasks", f"must be an integer >= 1, got {text!r:.40}") from None
-    if value < 1:
-        raise ConfigError("--tasks", f"must be an integer >= 1, got {value}")
-    return value
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> Any:  # one line, exit 2 (argparse prints usage too)
-        print(f"tradeoff: error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI entry: print the Markdown of :func:`study_tradeoff` for a study folder."""
-    parser = _Parser(prog="python -m otmm_qp.studies.tradeoff")
-    parser.add_argument("study", type=Path)
-    parser.add_argument("--group-by", default=GROUPINGS[0], help="generator or kind")
-    parser.add_argument("--calm", default=None, help="the calm row (default: front's)")
-    parser.add_argument("--accurate", default=None, help="the accurate row (default: front's)")
-    parser.add_argument("--tasks", default=None, help="at most N tasks per group")
-    args = parser.parse_args(argv)
-    try:
-        if args.group_by not in GROUPINGS:
-            raise ConfigError(
-                "--group-by", f"{args.group_by!r:.40} is not one of {', '.join(GROUPINGS)}"
-            )
-        tasks = _tasks_option(args.tasks)
-        config, rows = load_rows(args.study)
-        groups = study_tradeoff(config, rows, args.group_by, args.calm, args.accurate, tasks)
-    except OtmmError as error:
-        print(f"tradeoff: error: {error}", file=sys.stderr)
-        return 2
-    try:
-        print(render(groups, resolution(config)))
-    except BrokenPipeError:  # e.g. `... | head`: the reader left
-        sys.stderr.close()
-    return 0
+    """Deprecated alias of ``otmm-qp study tradeoff`` (kept for one release)."""
+    from otmm_qp.cli import deprecated_alias
+
+    return deprecated_alias("otmm_qp.studies.tradeoff", ["study", "tradeoff"], argv)
 
 
 if __name__ == "__main__":

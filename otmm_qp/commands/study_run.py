@@ -1,0 +1,149 @@
+"""``otmm-qp study run FILE`` (or ``otmm-qp study FILE``): run a study and write its report."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from otmm_qp.exceptions import ConfigError
+
+if TYPE_CHECKING:
+    from otmm_qp.studies.execute import StudyOutcome
+    from otmm_qp.studies.spec import StudyPlan
+
+HELP = "run a study (many random tasks x controllers) into a Parquet dataset, with a report"
+
+EXIT_INTERRUPTED = 130
+EXIT_BAD_INPUT = 2
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``otmm-qp study run``."""
+    parser.add_argument("file", type=Path, help="YAML study file")
+    parser.add_argument("--out", help="output directory (default: results/<safe study name>)")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        help="worker processes of an embedded Dask LocalCluster (default: cores); "
+        "1 runs in this process without Dask",
+    )
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://host:port")
+    parser.add_argument(
+        "--resume", action="store_true", help="skip episodes already stored (also the default)"
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="replace the dataset of another study in --out"
+    )
+    parser.add_argument("--no-report", action="store_true", help="do not write the report")
+    parser.add_argument(
+        "--highlight", help="a controller placed as 'ours' on each group's Pareto front (report)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the study; exit 0, 2 (bad input, or episodes that failed) or 130 (interrupted).
+
+    Every episode is stored, a failed one (a plugin exception, a malformed ``q̇``, an
+    infeasible QP under ``raise``) with its ``status`` and ``error_message``; the exit status
+    is then 2, as for ``run``, after the report is written.
+    """
+    from otmm_qp.studies.execute import run_study
+    from otmm_qp.studies.spec import load_study, plan_study
+
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
+    from otmm_qp.output.folders import check_out_argument
+    from otmm_qp.output.paths import safe_name
+
+    given = check_out_argument(args.out) if args.out is not None else None
+    config = load_study(args.file)
+    plan = plan_study(config, str(args.file))
+    out = given if given is not None else Path("results") / safe_name(config.name)
+    names = [c.name for c in plan.controllers]
+    if args.highlight is not None and args.highlight not in names:
+        raise ConfigError(
+            "--highlight",
+            f"no controller {args.highlight!r:.60} in the study; have: {', '.join(names)}",
+        )
+    for name, reason in plan.skipped:
+        print(f"otmm-qp: skipped controller {name}: {reason}", file=sys.stderr)
+    if args.quiet:
+        outcome = run_study(plan, out, str(args.file), args.workers, args.scheduler, args.force)
+    else:
+        outcome = _run_with_progress(plan, out, args)
+    rate = outcome.ran / outcome.seconds if outcome.seconds > 0 else 0.0
+    steps = outcome.steps / outcome.seconds if outcome.seconds > 0 else 0.0
+    print(
+        f"{outcome.ran} episodes run ({outcome.failed} failed), {outcome.skipped_stored} already "
+        f"stored, of {outcome.total}; {outcome.seconds:.1f} s, {rate:.1f} episodes/s, "
+        f"{steps:.0f} steps/s -> {out}/"
+    )
+    if not args.no_report:
+        from otmm_qp.studies.report import write_study_report
+        from otmm_qp.studies.storage import writing_report
+
+        with writing_report(out):
+            html, markdown = write_study_report(out, args.highlight)
+        print(f"  report: {html}\n          {markdown}")
+    if outcome.interrupted:
+        print(
+            "otmm-qp: interrupted; every finished episode is stored (rerun to resume)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    if outcome.failed:
+        print(
+            f"otmm-qp: error: {outcome.failed} of {outcome.ran} episodes failed or stopped early; "
+            "they are stored with status 'error' or 'stopped' and their error_message",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
+    return 0
+
+
+def _run_with_progress(plan: StudyPlan, out: Path, args: argparse.Namespace) -> StudyOutcome:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from otmm_qp.studies.execute import run_study
+
+    columns = (
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:.1f} ep/s"),
+        TextColumn("failed {task.fields[failed]}"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, transient=False) as bar:
+        stored = 0
+        task = bar.add_task(plan.config.name, total=len(plan.episodes), rate=0.0, failed=0)
+        failures = 0
+        import time
+
+        tic = time.perf_counter()
+
+        def hook(done: int, failed: int) -> None:
+            nonlocal failures, stored
+            failures += failed
+            stored += done
+            elapsed = max(time.perf_counter() - tic, 1e-9)
+            bar.update(task, advance=done, rate=stored / elapsed, failed=failures)
+
+        outcome = run_study(
+            plan, out, str(args.file), args.workers, args.scheduler, args.force, progress=hook
+        )
+        bar.update(task, completed=outcome.skipped_stored + outcome.ran)
+    return outcome

@@ -1,0 +1,35 @@
+"""``otmm-qp study verdict DIR --ours NAME [--kinds] [--out FILE]``: one row on the fronts.
+
+Where the controller ``--ours`` sits on a study's Pareto fronts, per robot × generator or per
+kind of task (``--kinds``); see :mod:`otmm_qp.studies.group_verdict`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = "where one controller sits on a study's Pareto fronts (per group or --kinds)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The study folder, ``--ours``, ``--kinds`` and ``--out``."""
+    parser.add_argument("study", type=Path, help="the study folder")
+    parser.add_argument("--ours", required=True, help="the controller placed on the fronts")
+    parser.add_argument("--kinds", action="store_true", help="group by kind of task")
+    parser.add_argument("--out", default=None, help="write the Markdown to this file")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print (or write) the fronts with ``--ours`` placed on them."""
+    from otmm_qp.commands.text_output import emit, out_file
+    from otmm_qp.studies.group_verdict import kind_fronts, render
+    from otmm_qp.studies.rows import load_rows
+    from otmm_qp.studies.verdicts import check_highlight, study_fronts
+
+    out = out_file(args.out)
+    rows = load_rows(args.study)[1]
+    check_highlight(rows, args.ours, "--ours")
+    fronts = kind_fronts(rows) if args.kinds else study_fronts(rows)
+    emit(render(fronts, args.ours, args.kinds), out)
+    return 0

@@ -1,0 +1,200 @@
+"""Read a study folder: its config and one typed table, the reference joined, success judged once.
+
+:func:`load` is the public reader (``otmm_qp.studies.load``)::
+
+    from otmm_qp.studies import load
+    table = load("results/planar")          # pyarrow.Table, one row per episode
+    frame = table.to_pandas()
+
+Every declared column (:data:`~otmm_qp.studies.columns.EPISODE_COLUMNS`) is there in its
+declared type; each task's ``reference.*`` columns (from its ``oracle`` row) are joined onto
+its other rows; ``success`` and ``failure_causes`` are judged here, once, by
+:func:`~otmm_qp.studies.criteria.failure_causes`; ``oracle_relative_error`` =
+``max_error − reference.max_error`` [m]. Only the rows of the study ``study.json`` names are
+read; what was left out, and parts of an older schema, are said in one line each.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+
+from otmm_qp.exceptions import OtmmError
+from otmm_qp.studies.columns import DERIVED_COLUMNS, number
+from otmm_qp.studies.criteria import failure_causes
+from otmm_qp.studies.keys import episode_id
+from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
+from otmm_qp.studies.schema import StudyConfig
+from otmm_qp.studies.storage import read_study_folder
+
+#: Oracle-relative error column computed for every controller row [m].
+RELATIVE_ERROR = "oracle_relative_error"
+
+
+@dataclass(frozen=True)
+class StudyFrame:
+    """A study read from its folder.
+
+    Attributes:
+        config: The validated study config of ``study.json``.
+        table: One row per episode (see the module docstring).
+        ignored: One line per reason something was left out.
+        older: Parts of an older schema that were read (types converted to the declared ones).
+    """
+
+    config: StudyConfig
+    table: pa.Table
+    ignored: tuple[str, ...] = ()
+    older: int = 0
+
+    def notes(self) -> list[str]:
+        """What a reader should be told: parts left out, parts of an older schema."""
+        lines = [f"ignored {line}" for line in self.ignored]
+        if self.older:
+            lines.append(
+                f"{self.older} parts are of an older episode schema (before version 2); "
+                "read with the declared column types"
+            )
+        return lines
+
+
+def is_reference(row: dict[str, Any]) -> bool:
+    """Whether ``row`` is a task's offline reference (``controller == "oracle"``)."""
+    return row.get("controller") == REFERENCE_NAME
+
+
+def _known(value: Any) -> bool:
+    return value is not None and not (isinstance(value, float) and math.isnan(value))
+
+
+def task_of(row: dict[str, Any]) -> object:
+    """The task an episode ran on: ``task_id`` when stored, else its identity columns."""
+    return row.get("task_id") or (
+        row["robot"],
+        row["generator"],
+        row.get("generator_params"),
+        row["task_index"],
+    )
+
+
+def join_reference(rows: list[dict[str, Any]]) -> None:
+    """Copy each ``oracle`` row's ``reference.*`` columns onto the rows of its task, in place.
+
+    Columns already on a row are kept; ``reference.max_error`` falls back to the oracle row's
+    ``max_error`` and ``reference.final_error`` is its ``final_error``. Then every row gets
+    :data:`RELATIVE_ERROR` = ``max_error − reference.max_error`` (NaN without a reference).
+    """
+    references: dict[object, dict[str, Any]] = {}
+    for row in rows:
+        if is_reference(row):
+            references[task_of(row)] = task_reference(row)
+    for row in rows:
+        for name, value in references.get(task_of(row), {}).items():
+            if not _known(row.get(name)):
+                row[name] = value
+        row[RELATIVE_ERROR] = number(row, "max_error") - number(row, "reference.max_error")
+
+
+def judged_rows(config: StudyConfig, rows: list[dict[str, Any]]) -> None:
+    """Join the references and judge every row once (``failure_causes``, ``success``), in place."""
+    join_reference(rows)
+    for row in rows:
+        if not row.get("episode_id"):
+            row["episode_id"] = episode_id(str(row.get("episode_key", "")))
+        causes = () if is_reference(row) else failure_causes(row, config.success)
+        row["failure_causes"] = list(causes)
+        row["success"] = not causes
+
+
+@dataclass
+class Rows:
+    """Episode rows as Python dicts, with success and failure causes recomputed.
+
+    ``controllers()`` lists the competitors only; the ``oracle`` rows are in ``rows`` too
+    (select them with ``controller=REFERENCE_NAME``).
+    """
+
+    rows: list[dict[str, Any]]
+
+    def controllers(self) -> list[str]:
+        """Competing controllers in first-seen order (the reference excluded)."""
+        return list(dict.fromkeys(r["controller"] for r in self.rows if not is_reference(r)))
+
+    def robots(self) -> list[str]:
+        """Robots in first-seen order."""
+        return list(dict.fromkeys(r["robot"] for r in self.rows))
+
+    def select(self, **equal: Any) -> list[dict[str, Any]]:
+        """Rows whose columns equal the given values."""
+        return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
+
+    @property
+    def has_reference(self) -> bool:
+        """Whether any task has an offline reference."""
+        return any(is_reference(r) or _known(r.get("reference.achievable")) for r in self.rows)
+
+    def accuracy_metric(self) -> str:
+        """The headline accuracy column: oracle-relative error, or max error without reference."""
+        return RELATIVE_ERROR if self.has_reference else "max_error"
+
+
+def task_key(row: dict[str, Any]) -> tuple[object, ...]:
+    """The task an episode ran on (``task_id`` when stored) and its loop mode."""
+    return (task_of(row), row["loop_mode"])
+
+
+def read(out: str | Path) -> StudyFrame:
+    """The study in ``out``: config and judged table (see the module docstring).
+
+    Raises:
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
+    """
+    out = Path(out)
+    config, data = read_study_folder(out)
+    if data.table is None or data.table.num_rows == 0:
+        raise OtmmError(f"{out}: the study has no stored episodes yet")
+    rows = data.table.to_pylist()
+    judged_rows(config, rows)
+    schema = data.table.schema
+    for column in DERIVED_COLUMNS:
+        if schema.get_field_index(column.name) < 0:
+            schema = schema.append(pa.field(column.name, column.type))
+    table = pa.Table.from_pylist(rows, schema=schema)
+    return StudyFrame(config, table, tuple(data.ignored), data.older)
+
+
+def load(out: str | Path) -> pa.Table:
+    """One row per episode of the study in ``out``, the reference joined and success judged.
+
+    What was left out and parts of an older schema are printed on stderr, one line each.
+
+    Raises:
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
+    """
+    frame = read(out)
+    for line in frame.notes():
+        print(f"otmm-qp: {line}", file=sys.stderr)
+    return frame.table
+
+
+def load_rows(out: str | Path) -> tuple[StudyConfig, Rows]:
+    """The study config and its rows (:func:`otmm_qp.studies.rows.read`) as dicts.
+
+    What the reader left out (other studies' parts, symlinks, duplicates...) and parts of an
+    older schema are printed on stderr, one line each.
+
+    Raises:
+        OtmmError: No study marker, an invalid one, or no episodes in ``out``.
+    """
+    frame = read(Path(out))
+    for line in frame.notes():
+        print(f"otmm-qp: report {line}", file=sys.stderr)
+    rows = frame.table.to_pylist()
+    for row in rows:
+        row["failure_causes"] = tuple(row["failure_causes"])
+    return frame.config, Rows(rows)

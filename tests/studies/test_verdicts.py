@@ -1,0 +1,75 @@
+"""Typed verdicts (otmm_qp.studies.verdicts): the decision, not its sentence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from scipy import stats
+
+from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.verdicts import (
+    TaskGroup,
+    accuracy_verdict,
+    decide_group,
+    task_groups,
+)
+
+
+def _row(name: str, index: int, success: bool) -> dict[str, Any]:
+    return {
+        "controller": name,
+        "robot": "r",
+        "generator": "g",
+        "generator_params": "{}",
+        "task_index": index,
+        "loop_mode": "clik",
+        "success": success,
+    }
+
+
+def test_the_pick_its_tie_and_the_closest_beaten_row() -> None:
+    rows = [_row("a", i, True) for i in range(30)]
+    rows += [_row("b", i, i < 5) for i in range(30)]
+    rows += [_row("c", i, i != 0) for i in range(30)]
+    verdict = decide_group(TaskGroup("singular crossings", "test tasks", rows))
+    assert verdict.outcome == "pick" and verdict.pick == "a" and verdict.tasks == 30
+    assert verdict.rates == {"a": 1.0, "b": 5 / 30, "c": 29 / 30}
+    assert verdict.not_separated == ("c",) and verdict.beaten == 1
+    closest = verdict.closest
+    assert closest is not None and closest.name == "b"
+    assert (closest.pick_only, closest.other_only) == (25, 0)
+    exact = stats.binomtest(25, 25, 0.5).pvalue  # McNemar: 25 discordant pairs, all for a
+    assert exact <= closest.p_holm <= 3 * exact  # Holm over the three pairs
+
+
+def test_no_tasks_one_row_nobody_and_a_tie() -> None:
+    assert decide_group(TaskGroup("g", "none", [])).outcome == "no tasks"
+    single = decide_group(TaskGroup("g", "one", [_row("a", i, i < 3) for i in range(4)]))
+    assert single.outcome == "single" and single.pick == "a" and single.rates == {"a": 0.75}
+    zero = [_row(n, i, False) for n in "ab" for i in range(5)]
+    assert decide_group(TaskGroup("g", "zero", zero)).outcome == "none succeeds"
+    tied = [_row(n, i, i % 2 == 0) for n in "xy" for i in range(10)]
+    verdict = decide_group(TaskGroup("g", "tied", tied))
+    assert verdict.outcome == "not separated" and verdict.pick is None
+    assert {r.rank for r in verdict.ranking} == {1}
+
+
+def test_groups_and_accuracy_of_a_stored_study(small_study: Path) -> None:
+    _, rows = load_rows(small_study)
+    groups = task_groups(rows, "planar2")
+    assert [g.label for g in groups] == [
+        "singular crossings",
+        "beyond-reach motion",
+        "limit-bound motion",
+    ]
+    for group in groups:
+        assert all(r["controller"] != "oracle" for r in group.rows)
+        verdict = decide_group(group)
+        assert set(verdict.rates) <= {"pinv", "dls"}
+        if verdict.pick is not None:
+            assert verdict.rates[verdict.pick] == max(verdict.rates.values())
+    accuracy = accuracy_verdict(rows, "planar2")
+    assert accuracy.relative and accuracy.top and set(accuracy.top) <= {"pinv", "dls"}
+    best = min(m.value for m in accuracy.medians.values())
+    assert any(accuracy.medians[name].value == best for name in accuracy.top)

@@ -17,6 +17,7 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
+from otmm_qp.reference import Candidate
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task, TaskGenerator
 from otmm_qp.simulation.episode import Episode, Loop
@@ -24,6 +25,7 @@ from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.drilldown import episode_id
 from otmm_qp.studies.oracle import (
+    OFFLINE,
     REFERENCE_INDEX,
     failed_columns,
     oracle_columns,
@@ -53,6 +55,8 @@ class WorkUnit:
         seed: Task seed.
         episodes: ``(key, controller index, loop mode)`` of each episode to run.
         time_series: Also return sampled time series.
+        reference: The task's stored ``reference.*`` columns (``task_reference`` of its
+            oracle row) when its reference episode is stored already, as sorted items.
     """
 
     robot: int
@@ -61,6 +65,7 @@ class WorkUnit:
     seed: int
     episodes: tuple[tuple[str, int, str], ...]
     time_series: bool = False
+    reference: tuple[tuple[str, Any], ...] | None = None
 
 
 @dataclass
@@ -220,63 +225,96 @@ def study_episode(
 
 
 def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
-    """Generate the unit's task and run its episodes, appending rows (never raising)."""
-    from otmm_qp.runner.build import build_controller
-    from otmm_qp.runner.episode import run_episode
-    from otmm_qp.runner.plant_stage import build_stage
+    """Generate the unit's task and run its episodes, appending rows (never raising).
 
+    The controllers run first: every path of theirs that kept the limits is a candidate of
+    the task's reference, solved next (so no known path beats it); then every controller
+    row's stored ``success`` is judged with that reference, by the rule the report applies.
+    A resumed task whose reference row is stored already is judged with the stored one
+    (``unit.reference``). The reference row comes first in the rows, as before.
+    """
     config, controllers = _study(payload)
-    settings = MetricSettings(**config.metrics.model_dump())
     robot, weight, task, task_error = _generate_task(config, unit)
-    # The reference first: every controller row's stored ``success`` is judged with it, by
-    # the rule the report applies (graceful criteria on the tasks it cannot meet).
-    episodes = sorted(unit.episodes, key=lambda episode: episode[1] != REFERENCE_INDEX)
-    reference: dict[str, Any] = {}
-    if (
-        config.reference.enabled
-        and task is not None
-        and robot is not None
-        and all(controller != REFERENCE_INDEX for _, controller, _ in episodes)
-    ):  # the task's reference row is stored already (a resumed study): solve it again
-        base = {"duration": _episode_duration(config, task)}
-        reference = task_reference(_oracle_row(config, base, robot, weight, task, base["duration"]))
-    for key, controller, mode in episodes:
+    rows: list[dict[str, Any]] = []
+    candidates: list[Candidate] = []
+    oracle_key: str | None = None
+    for key, controller, mode in unit.episodes:
+        if controller == REFERENCE_INDEX:
+            oracle_key = key
+            continue
         row = _base_row(config, controllers, unit, key, controller, mode)
         if task is not None:
             row.update({f"task.{k}": v for k, v in task.descriptors.items()})
         if task is None or robot is None:
             row.update(status="error", error_message=task_error, success=False)
-            if controller == REFERENCE_INDEX:
-                row.update(failed_columns(str(task_error)), status="error")
-            result.rows.append(row)
+            rows.append(row)
             continue
-        duration = _episode_duration(config, task)
-        row["duration"] = duration
-        if controller == REFERENCE_INDEX:
-            oracle = _oracle_row(config, row, robot, weight, task, duration)
-            reference = task_reference(oracle)
-            result.rows.append(oracle)
-            continue
-        try:
-            built = build_controller(
-                controllers[controller], f"controllers.{controller}", settings.blow_up_speed
+        row["duration"] = _episode_duration(config, task)
+        spec = controllers[controller]
+        run = _controller_episode(config, spec, controller, row, (robot, weight), task)
+        if run is not None:
+            series = _series(run, key, config.time_series.stride) if unit.time_series else None
+            if series is not None:
+                result.series.append(series)
+            if row["status"] == "ok":
+                candidates.append(
+                    Candidate(str(row["controller"]), run.q, run.error, float(row["max_error"]))
+                )
+        rows.append(row)
+    reference = dict(unit.reference or {})
+    if oracle_key is not None:
+        oracle = _base_row(config, controllers, unit, oracle_key, REFERENCE_INDEX, OFFLINE)
+        if task is not None:
+            oracle.update({f"task.{k}": v for k, v in task.descriptors.items()})
+        if task is None or robot is None:
+            oracle.update(status="error", error_message=task_error, success=False)
+            oracle.update(failed_columns(str(task_error)), status="error")
+        else:
+            oracle["duration"] = _episode_duration(config, task)
+            oracle = _oracle_row(
+                config, oracle, robot, weight, task, oracle["duration"], candidates
             )
-            stage = build_stage(controllers[controller])
-            episode = study_episode(config, robot, task, weight, mode)
-            record = run_episode(episode, built, settings, stage)
-        except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
-            row.update(status="error", error_message=one_line(error), success=False)
-            result.rows.append(row)
-            continue
-        run, metrics = record.result, record.metrics
-        row.update({name: metrics.get(name) for name in METRIC_NAMES})
-        row.update(speed_ratios(run))
-        row["status"] = "ok" if run.error_message is None else "stopped"
-        row["error_message"] = run.error_message
-        row["success"] = is_success({**reference, **row}, config.success)
-        result.rows.append(row)
-        if unit.time_series:
-            result.series.append(_series(run, key, config.time_series.stride))
+            reference = task_reference(oracle)
+        result.rows.append(oracle)
+    elif not reference and config.reference.enabled and task is not None and robot is not None:
+        base = {"duration": _episode_duration(config, task)}
+        oracle = _oracle_row(config, base, robot, weight, task, base["duration"], candidates)
+        reference = task_reference(oracle)
+    for row in rows:
+        if row.get("status") != "error":
+            row["success"] = is_success({**reference, **row}, config.success)
+    result.rows.extend(rows)
+
+
+def _controller_episode(
+    config: StudyConfig,
+    spec: ControllerConfig,
+    index: int,
+    row: dict[str, Any],
+    arm: tuple[Robot, FloatArray | None],
+    task: Task,
+) -> RunResult | None:
+    """Run one controller episode into ``row`` (metrics, status); its run, or None on error."""
+    from otmm_qp.runner.build import build_controller
+    from otmm_qp.runner.episode import run_episode
+    from otmm_qp.runner.plant_stage import build_stage
+
+    settings = MetricSettings(**config.metrics.model_dump())
+    robot, weight = arm
+    try:
+        built = build_controller(spec, f"controllers.{index}", settings.blow_up_speed)
+        stage = build_stage(spec)
+        episode = study_episode(config, robot, task, weight, str(row["loop_mode"]))
+        record = run_episode(episode, built, settings, stage)
+    except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
+        row.update(status="error", error_message=one_line(error), success=False)
+        return None
+    run, metrics = record.result, record.metrics
+    row.update({name: metrics.get(name) for name in METRIC_NAMES})
+    row.update(speed_ratios(run))
+    row["status"] = "ok" if run.error_message is None else "stopped"
+    row["error_message"] = run.error_message
+    return run
 
 
 def _oracle_row(
@@ -286,10 +324,11 @@ def _oracle_row(
     weight: FloatArray | None,
     task: Task,
     duration: float,
+    candidates: list[Candidate],
 ) -> dict[str, Any]:
     """The task's reference row (never raising: an unexpected error is a ``failed`` row)."""
     try:
-        row.update(oracle_columns(config, robot, weight, task, duration))
+        row.update(oracle_columns(config, robot, weight, task, duration, candidates))
     except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
         row.update(failed_columns(f"reference: {one_line(error)}"), success=False)
         return row

@@ -68,15 +68,18 @@ STEP_TOLERANCE = 1e-6
 INITIAL_RADIUS = 0.2
 MAX_RADIUS = 2.0
 MIN_RADIUS = 1e-10
+#: Clarabel's gap and feasibility tolerances (the KKT test is at 1e-4, every step is checked).
+QP_TOLERANCE = 1e-7
 #: Clarabel statuses whose point is used (every step is checked on the true errors anyway).
 ACCEPTED = ("Solved", "AlmostSolved", "MaxIterations", "MaxTime", "InsufficientProgress")
 
 
 def _settings() -> Any:
-    """Clarabel settings: quiet, default tolerances (1e-8), at most 60 interior iterations."""
+    """Clarabel settings: quiet, :data:`QP_TOLERANCE`, at most 60 interior iterations."""
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = 60
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = QP_TOLERANCE
     return settings
 
 
@@ -184,6 +187,9 @@ class EpigraphSQP:
         counts = np.tile(np.arange(1, nv + 1), self.blocks)
         indptr = np.concatenate([[0], np.cumsum(counts), [self.blocks * per]])
         self._p_pattern = (indices, indptr)
+        self._rows_kept: tuple[np.ndarray, np.ndarray] | None = None
+        self._stacked_pattern: sp.csc_matrix | None = None
+        self._stacked_order = np.zeros(0, dtype=int)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, path: FloatArray) -> tuple[FloatArray, FloatArray, float]:
@@ -268,6 +274,26 @@ class EpigraphSQP:
         )
         return lower, upper
 
+    def _sides(self, lower: FloatArray, upper: FloatArray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows with a finite upper / lower bound (fixed per task: set on the first call)."""
+        if self._rows_kept is None:
+            self._rows_kept = (upper < BIG / 2, lower > -BIG / 2)
+        return self._rows_kept
+
+    def _stacked(self, up: np.ndarray, down: np.ndarray) -> sp.csc_matrix:
+        """``[A_up; −A_down]`` with placeholder data, and its data order (built once)."""
+        if self._stacked_pattern is None:
+            matrix = self.layout.matrix.copy()
+            count = matrix.data.size
+            matrix.data = np.arange(1, count + 1, dtype=float)  # CSC position ids of A
+            stacked = sp.vstack([matrix[up], -matrix[down]], format="csc")
+            stacked.sort_indices()
+            ids = np.asarray(stacked.data, dtype=int)
+            # position in [A_data; −A_data]: a positive id is an upper row, negative a lower one
+            self._stacked_order = np.where(ids > 0, ids - 1, count + (-ids) - 1)
+            self._stacked_pattern = stacked
+        return self._stacked_pattern.copy()
+
     def _solve(
         self,
         p_data: FloatArray,
@@ -288,11 +314,10 @@ class EpigraphSQP:
         size = layout.size + 1
         indices, indptr = self._p_pattern
         hessian = sp.csc_matrix((p_data, indices, indptr), shape=(size, size))
-        matrix = layout.matrix.copy()
-        matrix.data = a_data
-        up = upper < BIG / 2
-        down = lower > -BIG / 2
-        stacked = sp.vstack([matrix[up], -matrix[down]], format="csc")
+        up, down = self._sides(lower, upper)
+        stacked = self._stacked(up, down)
+        values = np.concatenate([a_data, -a_data])  # ids index [A; −A] in CSC data order
+        stacked.data = values[self._stacked_order]
         rhs = np.concatenate([upper[up], -lower[down]])
         try:
             solver = clarabel.DefaultSolver(
@@ -308,7 +333,7 @@ class EpigraphSQP:
             raise SolverFailure(f"Clarabel returned no step ({status})")
         if status not in ACCEPTED:
             raise SolverFailure(f"Clarabel status {status}")
-        y = np.zeros(matrix.shape[0])
+        y = np.zeros(lower.size)
         count = int(np.count_nonzero(up))
         y[up] += z[:count]
         y[down] -= z[count:]

@@ -49,8 +49,8 @@ class ReferenceSettings:
     time_budget: float = 30.0
     iterations: int = 6
     minimax_rounds: int = 1
-    polish_iterations: int = 25
-    starts: int = 2
+    polish_iterations: int = 10
+    starts: int = 1
     perturbations: int = 1
     seed: int = 0
 

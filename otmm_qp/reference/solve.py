@@ -18,13 +18,15 @@ limit:
 3. **Min-max polish** (only when no start meets the tolerances): the epigraph SQP
    (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
-   (step and KKT residual, stored) or its cap, within the time budget.
+   (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
+   half of it for the others), within the time budget; it stops early once the bracket is
+   closed (``upper − lower ≤ 1e-6 upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
    limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
 5. **Position optimum** (the one reference of every claim about *position* error:
    oracle-relative error, graceful position bound, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the epigraph SQP on position alone
-   (orientation free) when it is above the position tolerance. Position tasks: the same
+   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance. Position tasks: the same
    path as the upper bound.
 
 Label: ``achievable`` (a stored path meets every tolerance), ``unachievable`` (the lower
@@ -285,7 +287,8 @@ def _polish(
             break
         if outcomes and _closed(min(o.merit for o in outcomes), lower):
             break  # certified optimal to GAP_TOLERANCE: another start cannot do better
-        outcome = solver.solve(path, settings.polish_iterations, deadline)
+        cap = settings.polish_iterations if index == 0 else settings.polish_iterations // 2
+        outcome = solver.solve(path, cap, deadline)
         outcomes.append(outcome)
         source = "epigraph" if index < len(starts) - settings.perturbations else "perturbed"
         pool.append(_entry(problem, outcome.path, source))
@@ -314,7 +317,8 @@ def _position_optimum(
         return value, bound.position_value
     position = problem.position_only()
     try:
-        outcome = EpigraphSQP(position).solve(best.path, settings.polish_iterations, deadline)
+        cap = settings.polish_iterations // 2
+        outcome = EpigraphSQP(position).solve(best.path, cap, deadline)
     except SolverFailure:
         return value, bound.position_value
     errors = problem.errors(outcome.path)

@@ -5,7 +5,8 @@
 and ``DIR/figures/*.png``. Every number in them is computed here from the stored rows.
 
 Per robot the report leads with the verdict in plain words — which controller to pick for
-singular crossings, for beyond-reach motion and for limit-bound motion, each backed by the
+singular crossings, for tasks certified unachievable, for undecided ones (the reference's
+bracket labels) and for limit-bound motion, each backed by the
 exact McNemar test on the same tasks, and the most accurate one by the Wilcoxon test of the
 oracle-relative error — and a Pareto figure, then the failure causes per controller and
 generator, the worst episode of each controller (with its id for ``otmm-qp study show``) and
@@ -287,6 +288,11 @@ def success_flags(selected: list[dict[str, Any]]) -> dict[str, dict[tuple[object
     return flags
 
 
+#: Labels of the kinds of task the reference's bracket decides (see :func:`task_groups`).
+UNACHIEVABLE = "unachievable (certified)"
+UNDECIDED = "undecided"
+
+
 @dataclass(frozen=True)
 class TaskGroup:
     """A kind of motion a verdict is given for: a label, how its tasks are chosen, its rows."""
@@ -297,11 +303,14 @@ class TaskGroup:
 
 
 def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
-    """Singular crossings, beyond-reach and limit-bound tasks of ``robot``'s competitor rows.
+    """The kinds of task of ``robot``'s competitor rows (the one place their labels are set).
 
-    With a reference: ``reference.near_singular`` and achievable, ``reference.achievable``
-    false, ``reference.touches_position_limit``; without one, by generator (``near_singular``
-    and ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
+    With a reference: singular crossings (``reference.near_singular`` and achievable),
+    *unachievable (certified)* and *undecided* (``reference.status``: the bracket's labels,
+    :func:`otmm_qp.reference.solve.solve_reference`; a stored row of an older study that is
+    not achievable and not certified counts as undecided), limit-bound
+    (``reference.touches_position_limit``); without one, by generator (``near_singular`` and
+    ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
     """
     own = [r for r in rows.select(robot=robot) if not _is_oracle(r)]
     if rows.has_reference:
@@ -321,9 +330,20 @@ def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
                 ],
             ),
             TaskGroup(
-                "beyond-reach motion",
-                "tasks the reference finds unachievable (judged by the graceful criteria)",
-                [r for r in own if not is_achievable(r)],
+                UNACHIEVABLE,
+                "tasks whose certified lower bound exceeds a tolerance (judged by the graceful "
+                "criteria)",
+                [r for r in own if r.get("reference.status") == "unachievable"],
+            ),
+            TaskGroup(
+                UNDECIDED,
+                "tasks no path was found to meet and no bound rules out (judged by the "
+                "graceful criteria)",
+                [
+                    r
+                    for r in own
+                    if not is_achievable(r) and r.get("reference.status") != "unachievable"
+                ],
             ),
             TaskGroup(
                 "limit-bound motion",
@@ -348,6 +368,51 @@ def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
             [],
         ),
     ]
+
+
+def bracket_table(rows: Rows, robot: str) -> list[str]:
+    """The reference's bracket per kind of task: labels and the gap ``upper − lower``.
+
+    Per kind (:func:`task_groups`, plus every task of the robot): tasks, how many are
+    achievable / unachievable / undecided / failed, and the median and 90th percentile of
+    ``reference.upper − reference.lower`` [tolerances] over its tasks.
+    """
+    if not rows.has_reference:
+        return []
+    oracle = {_task(r): r for r in rows.select(robot=robot) if _is_oracle(r)}
+    kinds = [(g.label, {_task(r) for r in g.rows}) for g in task_groups(rows, robot)]
+    kinds.append(("all tasks", set(oracle)))
+    out = [
+        f"### Reference bracket on {robot}",
+        "",
+        "Per kind of task: the reference's labels (achievable: a stored path meets every "
+        "tolerance within every limit; unachievable: its certified lower bound exceeds a "
+        "tolerance; undecided: neither) and the gap upper − lower of its bracket of the "
+        "min-max error, in tolerances (0: the optimum is pinned).",
+        "",
+        "| kind of task | tasks | achievable / unachievable / undecided / failed "
+        "| median gap | 90th percentile gap |",
+        "|---|---|---|---|---|",
+    ]
+    for label, tasks in kinds:
+        chosen = [oracle[t] for t in tasks if t in oracle]
+        if not chosen:
+            continue
+        counts = "/".join(
+            str(sum(r.get("reference.status") == s for r in chosen))
+            for s in ("achievable", "unachievable", "undecided", "failed")
+        )
+        gaps = np.array(
+            [_value(r, "reference.upper") - _value(r, "reference.lower") for r in chosen]
+        )
+        gaps = gaps[np.isfinite(gaps)]
+        median, p90 = (
+            (float(np.median(gaps)), float(np.percentile(gaps, 90)))
+            if gaps.size
+            else (math.nan,) * 2
+        )
+        out.append(f"| {label} | {len(chosen)} | {counts} | {_fmt(median)} | {_fmt(p90)} |")
+    return [*out, ""]
 
 
 def _rate(flags: dict[tuple[object, ...], bool]) -> tuple[float, int]:
@@ -619,6 +684,7 @@ def _robot_section(
 ) -> list[str]:
     """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
     out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    out += bracket_table(rows, robot)
     if fronts:
         out += [f"### Pareto fronts on {robot}", "", *summary_table(fronts, _ours(highlight)), ""]
     pareto = _pareto_path(robot)

@@ -166,8 +166,8 @@ class ReferenceConfig(Strict):
     speed_bound: Literal["criteria", "robot"] = "criteria"
     iterations: int = Field(6, ge=0)
     minimax_rounds: int = Field(1, ge=0)
-    polish_iterations: int = Field(25, ge=0)
-    starts: int = Field(2, ge=1)
+    polish_iterations: int = Field(10, ge=0)
+    starts: int = Field(1, ge=1)
     perturbations: int = Field(1, ge=0)
 
 

@@ -49,9 +49,9 @@ class ReferenceSettings:
     time_budget: float = 30.0
     iterations: int = 6
     minimax_rounds: int = 1
-    polish_iterations: int = 10
+    polish_iterations: int = 20
     starts: int = 1
-    perturbations: int = 1
+    perturbations: int = 0
     seed: int = 0
 
     def __post_init__(self) -> None:

@@ -15,19 +15,21 @@ limit:
 2. **Least squares** from the better of the first two: trust-region Newton with OSQP
    (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
    start.
-3. **Min-max polish** (only when no start meets the tolerances): the epigraph SQP
+3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
+   epigraph SQP
    (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
    (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
-   half of it for the others), within the time budget; it stops early once the bracket is
-   closed (``upper − lower ≤ 1e-6 upper``).
+   half of it for the others; a task already achievable gets the best start only, with
+   half the cap), within the time budget; it stops early once the bracket is closed
+   (``upper − lower ≤ 1e-6 upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
    limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
 5. **Position optimum** (the one reference of every claim about *position* error:
    oracle-relative error, graceful position bound, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the epigraph SQP on position alone
-   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance. Position tasks: the same
-   path as the upper bound.
+   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
+   Position tasks: the same path as the upper bound.
 
 Label: ``achievable`` (a stored path meets every tolerance), ``unachievable`` (the lower
 bound exceeds them: certified), ``undecided`` (neither); ``failed`` when a solver failed
@@ -161,7 +163,7 @@ def solve_reference(
         if problem.samples > 1:
             start = min(pool[:2], key=lambda entry: entry.merit)
             _least_squares(problem, start, pool, deadline)
-            if min(entry.merit for entry in pool) > 1.0:
+            if min(entry.merit for entry in pool) > SETTLE:
                 polish = _polish(problem, pool, bound.value, deadline)
     except SolverFailure as error:
         message = f"solver failure: {error}"
@@ -275,22 +277,24 @@ def _polish(
     """
     settings = problem.settings
     solver = EpigraphSQP(problem)
-    starts = [e.path for e in _distinct(pool, max(1, settings.starts), "merit")]
+    certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
+    starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
     rng = np.random.default_rng(settings.seed)
-    for _ in range(settings.perturbations):
+    for _ in range(0 if certified else settings.perturbations):
         noisy = starts[0] + rng.normal(0.0, PERTURBATION, starts[0].shape)
         noisy[0] = problem.q0
         starts.append(project_path(noisy, problem.lower, problem.upper, problem.step))
+    perturbed = 0 if certified else settings.perturbations
     outcomes: list[EpigraphOutcome] = []
     for index, path in enumerate(starts):
         if time.perf_counter() > deadline:
             break
         if outcomes and _closed(min(o.merit for o in outcomes), lower):
             break  # certified optimal to GAP_TOLERANCE: another start cannot do better
-        cap = settings.polish_iterations if index == 0 else settings.polish_iterations // 2
+        cap = settings.polish_iterations // (2 if index > 0 or certified else 1)
         outcome = solver.solve(path, cap, deadline)
         outcomes.append(outcome)
-        source = "epigraph" if index < len(starts) - settings.perturbations else "perturbed"
+        source = "epigraph" if index < len(starts) - perturbed else "perturbed"
         pool.append(_entry(problem, outcome.path, source))
     if not outcomes:
         return EpigraphOutcome(pool[0].path, pool[0].merit)

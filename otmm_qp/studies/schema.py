@@ -166,9 +166,9 @@ class ReferenceConfig(Strict):
     speed_bound: Literal["criteria", "robot"] = "criteria"
     iterations: int = Field(6, ge=0)
     minimax_rounds: int = Field(1, ge=0)
-    polish_iterations: int = Field(10, ge=0)
+    polish_iterations: int = Field(20, ge=0)
     starts: int = Field(1, ge=1)
-    perturbations: int = Field(1, ge=0)
+    perturbations: int = Field(0, ge=0)
 
 
 #: Generator parameters that set how much work one task may take (each bounded by

@@ -187,8 +187,10 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(dict(STUDY, controllers=STUDY["controllers"][:1])))
     out = tmp_path / "bench.json"
-    assert module.main(["--tasks", "3", "--config", str(config), "--json", str(out)]) == 0
+    argv = ["--tasks", "3", "--config", str(config), "--json", str(out), "--check", "1"]
+    assert module.main(argv) == 0
     numbers = json.loads(out.read_text())
+    assert numbers["check"]["tasks"] == 1 and numbers["check"]["improved"] in (0, 1)
     assert numbers["tasks"] == 3 and numbers["episodes"] == 6
     assert 0.0 < numbers["reference_s"] < numbers["compute_s"]
     assert 0.0 < numbers["reference_share"] < 1.0

@@ -260,3 +260,48 @@ def test_an_independent_solver_does_not_beat_the_upper_bound_by_5_percent(seed: 
     assert other >= 0.95 * result.bracket.upper - 1e-9
     metrics = compute_metrics(as_run(result, problem), MetricSettings())
     assert metrics["max_error"] == pytest.approx(result.max_error)
+
+
+FROZEN_URDF = """<robot name="frozen">
+  <link name="base"/>
+  <link name="l1"/>
+  <link name="l2"/>
+  <link name="tip"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="{low}" upper="0.5" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="1 0 0"/><axis xyz="0 0 1"/><limit lower="0" upper="0" effort="1" velocity="1"/>
+  </joint>
+  <joint name="jt" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.8 0 0"/>
+  </joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize(("low", "words"), [("0.5", "lower == upper"), ("0.9", "lower limit")])
+def test_a_urdf_whose_limits_leave_no_motion_is_one_line_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], low: str, words: str
+) -> None:
+    """Every joint frozen (or one reversed): every target but the start is unreachable."""
+    import yaml
+
+    from otmm_qp.cli import main
+
+    urdf = tmp_path / "frozen.urdf"
+    urdf.write_text(FROZEN_URDF.format(low=low))
+    study = dict(
+        PLANAR,
+        robots=[
+            {
+                "name": "frozen",
+                "robot": {"type": "pinocchio", "urdf": str(urdf), "frame": "tip"},
+            }
+        ],
+    )
+    path = tmp_path / "frozen.yaml"
+    path.write_text(yaml.safe_dump(study))
+    out = tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "urdf" in err[0]
+    assert not out.exists()

@@ -162,13 +162,42 @@ def test_reference_can_be_switched_off() -> None:
 
 @pytest.mark.parametrize(
     ("reference", "field"),
-    [({"time_budget": 0}, "reference.time_budget"), ({"speed_bound": "fast"}, "speed_bound")],
+    [
+        ({"time_budget": 0}, "reference.time_budget"),
+        ({"time_budget": -1.0}, "reference.time_budget"),
+        ({"time_budget": float("nan")}, "reference.time_budget"),
+        ({"time_budget": float("inf")}, "reference.time_budget"),
+        ({"speed_bound": "fast"}, "speed_bound"),
+        ({"polish_iterations": -1}, "reference.polish_iterations"),
+        ({"starts": 0}, "reference.starts"),
+        ({"perturbations": 1.5}, "reference.perturbations"),
+    ],
 )
 def test_bad_reference_settings_name_the_field(reference: dict, field: str) -> None:
     from otmm_qp.exceptions import ConfigError
 
     with pytest.raises(ConfigError, match=field):
         parse_study(dict(STUDY, reference=reference))
+
+
+@pytest.mark.parametrize("budget", ["0", "-1", ".nan", ".inf"])
+def test_bad_budget_is_one_line_exit_2_before_any_compute(
+    tmp_path: Path, budget: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import yaml
+
+    from otmm_qp.cli import main
+
+    text = yaml.safe_dump(STUDY).replace(
+        "seed: 4", f"seed: 4\nreference: {{time_budget: {budget}}}"
+    )
+    study = tmp_path / "bad.yaml"
+    study.write_text(text)
+    out = tmp_path / "out"
+    assert main(["study", str(study), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "reference.time_budget" in err[0]
+    assert not out.exists()
 
 
 def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

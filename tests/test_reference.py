@@ -54,8 +54,12 @@ def test_two_link_past_its_reach_error_is_distance_minus_reach() -> None:
     settings_ = ReferenceSettings(position_tolerance=0.02, speed_limit=10.0)
     result, problem = solve_reference(robot, trajectory, q0, DT, 2.5, settings_)
     distance = max(float(np.linalg.norm(x)) for x in problem.targets)
-    assert result.status == "infeasible" and not result.achievable
+    assert result.status == "unachievable" and not result.achievable
     assert result.max_error == pytest.approx(distance - 1.8, abs=1e-6)
+    # The bracket is closed: the reach annulus gives the exact optimum from below.
+    assert result.bracket.lower <= result.bracket.upper
+    assert result.bracket.upper - result.bracket.lower < 1e-6
+    assert result.bracket.position_optimum == pytest.approx(distance - 1.8, abs=1e-6)
     # Every sample past the reach is at its own best: the distance to the workspace.
     beyond = np.linalg.norm(np.array(problem.targets), axis=1) - 1.8
     out = beyond > 0.0
@@ -74,7 +78,7 @@ def test_fk_of_a_joint_path_inside_the_limits_is_certified(seed: int) -> None:
     trajectory = JointWaypointsTrajectory(robot.forward(nodes[0]), robot, nodes, duration=2.0)
     settings_ = ReferenceSettings(position_tolerance=0.01, speed_limit=10.0)
     result, _ = solve_reference(robot, trajectory, nodes[0], DT, 2.2, settings_)
-    assert result.status == "feasible" and result.achievable
+    assert result.status == "achievable" and result.achievable
     assert result.max_error <= 1e-2 * 0.01  # settles at 1 % of the tolerance
     check_within_limits(robot, result, 10.0)
 
@@ -88,7 +92,7 @@ def test_ur5_pose_fk_of_a_joint_path_is_certified(ur5_pose: Robot) -> None:
     settings_ = ReferenceSettings(0.02, 0.1, speed_limit=3.0)
     weight = np.array([1.0, 1.0, 1.0, 0.2, 0.2, 0.2])
     result, _ = solve_reference(ur5_pose, trajectory, q0, DT, 2.0, settings_, weight)
-    assert result.status == "feasible"
+    assert result.status == "achievable"
     assert result.max_error <= 2e-4 and result.max_orientation_error <= 1e-3
     check_within_limits(ur5_pose, result, 3.0)
 
@@ -102,7 +106,11 @@ def test_target_outside_the_position_limits_but_inside_the_reach() -> None:
     target = np.array([1.75 * math.cos(0.4), 1.75 * math.sin(0.4)])
     settings_ = ReferenceSettings(position_tolerance=0.01, speed_limit=10.0)
     result, _ = solve_reference(robot, Hold(target, 1.0), q0, DT, 1.0, settings_)
-    assert result.status == "infeasible"
+    # Certified by sample 0 (q_0 itself, away from the held target), not by the reach.
+    assert result.status == "unachievable"
+    start_error = float(np.linalg.norm(target - robot.forward(q0)))
+    assert result.bracket.lower == pytest.approx(start_error / 0.01, rel=1e-8)
+    assert result.bracket.lower <= result.bracket.upper
     assert result.max_error > 0.05
     assert float(np.linalg.norm(result.errors[-1])) == pytest.approx(1.75 - reach, abs=1e-6)
     assert result.touches_position_limit
@@ -140,17 +148,22 @@ def test_path_never_violates_a_limit_and_never_loses_to_the_warm_start(
     assert result.merit <= result.warm_start_merit + 1e-12
     assert np.array_equal(result.path[0], q0)
     assert np.all(np.isfinite(result.path)) and np.all(np.isfinite(result.errors))
-    assert (result.status == "feasible") == (result.merit <= 1.0)
+    assert (result.status == "achievable") == (result.merit <= 1.0)
+    bracket = result.bracket
+    assert bracket.lower <= bracket.upper == result.merit
+    assert (result.status == "unachievable") == (bracket.lower > 1.0)
+    assert bracket.position_optimum <= result.max_error
 
 
-def test_time_budget_is_a_failed_state_not_a_crash() -> None:
+def test_time_budget_stops_the_solve_with_its_best_path() -> None:
     robot = PlanarArm([1.0, 0.8])
     q0 = np.array([0.3, 0.6])
     x0 = robot.forward(q0)
     trajectory = WaypointsTrajectory(x0, [[2.5, 0.5]], duration=1.0)
     settings_ = ReferenceSettings(position_tolerance=0.01, time_budget=1e-9)
     result, _ = solve_reference(robot, trajectory, q0, DT, 1.0, settings_)
-    assert result.status == "failed" and not result.achievable
+    # Out of the reach annulus: certified by the lower bound, whatever the budget.
+    assert result.status == "unachievable" and not result.achievable
     assert result.message is not None and "time budget" in result.message
     check_within_limits(robot, result, None)
 
@@ -262,4 +275,4 @@ def test_a_joint_path_task_starts_from_its_own_joint_path() -> None:
     assert np.max(np.linalg.norm(problem.errors(start), axis=1)) < 1e-12
     assert joint_path_start(problem, Hold(np.zeros(2), 1.0)) is None
     result, _ = solve_reference(robot, trajectory, nodes[0], DT, 1.7)
-    assert result.status == "feasible" and result.warm_start_merit < 1e-9
+    assert result.status == "achievable" and result.warm_start_merit < 1e-9

@@ -64,14 +64,16 @@ def test_one_oracle_row_per_task_with_the_contract_columns(study_out: Path) -> N
     for row in oracle:
         assert (row["backend"], row["filters"], row["loop_mode"]) == ("oracle", "none", "offline")
         assert set(REFERENCE_COLUMNS) <= set(row)
-        assert row["reference.achievable"] == (row["reference.status"] == "feasible")
+        assert row["reference.achievable"] == (row["reference.status"] == "achievable")
+        # position task: the position optimum is the best path's own error
         assert row["max_error"] == pytest.approx(row["reference.max_error"])
+        assert row["reference.lower"] <= row["reference.upper"]
         assert row["position_violations"] == 0 and row["velocity_violations"] == 0
         assert row["reference.max_joint_speed"] <= 10.0
         assert math.isnan(row["reference.max_orientation_error"])  # position task
         assert row["reference.near_singular"] == (row["reference.min_sigma"] < 0.05)
     by_type = {r["generator"]: r["reference.status"] for r in oracle}
-    assert by_type == {"beyond_reach": "infeasible", "random_reachable": "feasible"}
+    assert by_type == {"beyond_reach": "unachievable", "random_reachable": "achievable"}
     assert all(r["generator_entry"] for r in rows)
 
 
@@ -88,8 +90,9 @@ def test_stored_success_is_judged_with_the_reference_also_when_it_is_stored(
     """Controller rows are judged with their task's reference (graceful on unachievable
     tasks), as the report judges them, also in a unit whose reference row is stored already."""
     from otmm_qp.studies.episodes import run_chunk
-    from otmm_qp.studies.execute import make_chunks, payload_of
+    from otmm_qp.studies.execute import make_chunks, payload_of, stored_references
     from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.storage import study_id
 
     study = dict(
         STUDY,
@@ -110,23 +113,46 @@ def test_stored_success_is_judged_with_the_reference_also_when_it_is_stored(
 
     oracle_keys = {e.key for e in plan.episodes if e.controller < 0}
     payload = payload_of(plan)
-    rows = [
-        row
-        for chunk in make_chunks(plan, oracle_keys)  # every reference stored, no controller
-        for row in run_chunk(payload, chunk).rows
-    ]
-    assert {r["controller"] for r in rows} == {"qp", "dls[damping=0.02]", "dls[damping=0.05]"}
-    assert {r["episode_key"]: bool(r["success"]) for r in rows} == judged
+    ident = study_id(plan.config.model_dump(mode="json"))
+    stored_refs = stored_references(plan, oracle_keys, tmp_path, ident)
+    assert len(stored_refs) == 3  # every task's stored reference travels with its unit
+    for references in (stored_refs, None):  # the stored one, or solved again
+        rows = [
+            row
+            for chunk in make_chunks(plan, oracle_keys, references)  # no controller stored
+            for row in run_chunk(payload, chunk).rows
+        ]
+        assert {r["controller"] for r in rows} == {"qp", "dls[damping=0.02]", "dls[damping=0.05]"}
+        assert {r["episode_key"]: bool(r["success"]) for r in rows} == judged
 
 
-def test_time_budget_is_a_stored_failed_reference(tmp_path: Path) -> None:
+def test_time_budget_keeps_the_best_path_so_far(tmp_path: Path) -> None:
     study = dict(STUDY, generators=[STUDY["generators"][0]], reference={"time_budget": 1e-9})
     plan = plan_study(parse_study(study))
     outcome = run_study(plan, tmp_path, "s", workers=1)
     assert outcome.ran == 2 * 4
     oracle = [r for r in _rows(tmp_path) if r["controller"] == "oracle"]
-    assert [r["reference.status"] for r in oracle] == ["failed", "failed"]
+    assert [r["reference.status"] for r in oracle] == ["unachievable", "unachievable"]
     assert all("time budget" in r["error_message"] for r in oracle)
+
+
+def test_a_failing_solve_is_a_stored_failed_reference_and_the_study_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from otmm_qp.reference.sqp import SequentialQP, SolverFailure
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise SolverFailure("OSQP status 'primal infeasible'")
+
+    monkeypatch.setattr(SequentialQP, "_solve", refuse)
+    study = dict(STUDY, generators=[STUDY["generators"][0]])
+    plan = plan_study(parse_study(study))
+    outcome = run_study(plan, tmp_path, "s", workers=1)
+    assert outcome.ran == 2 * 4
+    oracle = [r for r in _rows(tmp_path) if r["controller"] == "oracle"]
+    assert [r["reference.status"] for r in oracle] == ["failed", "failed"]
+    assert all("solver failure" in r["error_message"] for r in oracle)
+    assert all(r["status"] == "ok" for r in _rows(tmp_path) if r["controller"] != "oracle")
 
 
 def test_reference_can_be_switched_off() -> None:
@@ -136,13 +162,42 @@ def test_reference_can_be_switched_off() -> None:
 
 @pytest.mark.parametrize(
     ("reference", "field"),
-    [({"time_budget": 0}, "reference.time_budget"), ({"speed_bound": "fast"}, "speed_bound")],
+    [
+        ({"time_budget": 0}, "reference.time_budget"),
+        ({"time_budget": -1.0}, "reference.time_budget"),
+        ({"time_budget": float("nan")}, "reference.time_budget"),
+        ({"time_budget": float("inf")}, "reference.time_budget"),
+        ({"speed_bound": "fast"}, "speed_bound"),
+        ({"polish_iterations": -1}, "reference.polish_iterations"),
+        ({"starts": 0}, "reference.starts"),
+        ({"perturbations": 1.5}, "reference.perturbations"),
+    ],
 )
 def test_bad_reference_settings_name_the_field(reference: dict, field: str) -> None:
     from otmm_qp.exceptions import ConfigError
 
     with pytest.raises(ConfigError, match=field):
         parse_study(dict(STUDY, reference=reference))
+
+
+@pytest.mark.parametrize("budget", ["0", "-1", ".nan", ".inf"])
+def test_bad_budget_is_one_line_exit_2_before_any_compute(
+    tmp_path: Path, budget: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import yaml
+
+    from otmm_qp.cli import main
+
+    text = yaml.safe_dump(STUDY).replace(
+        "seed: 4", f"seed: 4\nreference: {{time_budget: {budget}}}"
+    )
+    study = tmp_path / "bad.yaml"
+    study.write_text(text)
+    out = tmp_path / "out"
+    assert main(["study", str(study), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "reference.time_budget" in err[0]
+    assert not out.exists()
 
 
 def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -161,8 +216,10 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(dict(STUDY, controllers=STUDY["controllers"][:1])))
     out = tmp_path / "bench.json"
-    assert module.main(["--tasks", "3", "--config", str(config), "--json", str(out)]) == 0
+    argv = ["--tasks", "3", "--config", str(config), "--json", str(out), "--check", "1"]
+    assert module.main(argv) == 0
     numbers = json.loads(out.read_text())
+    assert numbers["check"]["tasks"] == 1 and numbers["check"]["improved"] in (0, 1)
     assert numbers["tasks"] == 3 and numbers["episodes"] == 6
     assert 0.0 < numbers["reference_s"] < numbers["compute_s"]
     assert 0.0 < numbers["reference_share"] < 1.0

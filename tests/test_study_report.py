@@ -85,7 +85,9 @@ def _oracle_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "max_error": best,
                 "final_error": 1e-4,
                 "max_joint_speed": 0.5,
-                "reference.status": "infeasible" if beyond else "feasible",
+                "reference.status": "unachievable" if beyond else "achievable",
+                "reference.upper": 5.0 if beyond else 0.5,
+                "reference.lower": 4.0 if beyond else 0.0,
                 "reference.max_error": best,
                 "reference.max_orientation_error": math.nan,
                 "reference.max_joint_speed": 0.5,
@@ -137,7 +139,11 @@ def test_oracle_rows_are_the_reference_never_a_competitor(with_oracle: Path) -> 
     report = (with_oracle / "study_report.md").read_text()
     verdict = report[report.index("### Verdict") : report.index("### Failure causes")]
     assert "**Singular crossings** (3 tasks" in verdict
-    assert "**Beyond-reach motion** (2 tasks" in verdict
+    assert "**Unachievable (certified)** (2 tasks" in verdict
+    assert "**Undecided** (0 tasks" in verdict
+    bracket = report[report.index("### Reference bracket") : report.index("### Pareto fronts")]
+    assert "| unachievable (certified) | 2 | 0/2/0/0 | 1 | 1 |" in bracket
+    assert "| all tasks | 5 | 3/2/0/0 | 0.5 | 1 |" in bracket
     assert "**Limit-bound motion** (2 tasks" in verdict  # task 0 of each generator
     assert "oracle-relative" in verdict
     # the oracle is a row of the table, never in a paired test or ranking

@@ -71,13 +71,16 @@ def test_the_command_prints_the_table(study: Path, capsys: pytest.CaptureFixture
 
 
 def test_rebuilt_task_is_the_studys(study: Path) -> None:
-    # The study's own speed cap (success.max_joint_speed = 10) reproduces its stored reference.
+    # The study's own speed cap (success.max_joint_speed = 10) rebuilds its stored task: the
+    # same certified lower bound (it depends on the task alone), and an upper bound no better
+    # than the stored one (which also had the controllers' paths as candidates) beyond 1e-6.
     config, rows = load_rows(study)
     for row in rows.select(controller="oracle"):
         robot, weight, task, duration = rebuild_task(config, row)
         result = bounded_optimum(config, robot, weight, task, duration, 10.0)
-        assert result.max_error == row["max_error"]
-        assert result.max_joint_speed == row["reference.max_joint_speed"]
+        assert result.bracket.lower == row["reference.lower"]
+        assert result.merit >= row["reference.upper"] - 1e-6 * max(1.0, row["reference.upper"])
+        assert result.max_joint_speed <= 10.0
 
 
 def test_bound_is_respected_and_error_is_monotone(study: Path) -> None:
@@ -88,7 +91,7 @@ def test_bound_is_respected_and_error_is_monotone(study: Path) -> None:
         [
             r
             for r in rows.select(controller="oracle", generator="near_singular")
-            if r["reference.status"] == "feasible"
+            if r["reference.status"] == "achievable"
         ],
         key=lambda r: r["reference.max_joint_speed"],
     )

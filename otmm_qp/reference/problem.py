@@ -8,6 +8,8 @@ Errors are scaled by the tolerances, ``ẽ_k = S e(x_d(t_k), f(q_k))`` with
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 
 import numpy as np
@@ -32,7 +34,8 @@ class TrackingProblem:
         q0: Start joint coordinates, shape ``(nv,)``.
         dt: Sample period [s] (the study's control period).
         duration: Horizon [s]; ``N = max(1, round(duration/dt))`` samples.
-        settings: Tolerances (scale ``S``) and the speed cap.
+        settings: Tolerances (scale ``S``; a pose task without an orientation tolerance
+            scales its orientation rows by 0) and the speed cap.
 
     Attributes:
         targets: ``x_d(t_k)`` of every sample (length ``N``).
@@ -64,7 +67,8 @@ class TrackingProblem:
         orientation = settings.orientation_tolerance
         self.scale = np.ones(n) / (position if position is not None else 1.0)
         if self.pose:
-            self.scale[3:] = 1.0 / (orientation if orientation is not None else 1.0)
+            # A part without a tolerance is not in the merit: not in the least squares either.
+            self.scale[3:] = 1.0 / orientation if orientation is not None else 0.0
         lower, upper = robot.position_limits
         self.lower = np.asarray(lower, dtype=float)
         self.upper = np.asarray(upper, dtype=float)
@@ -74,6 +78,15 @@ class TrackingProblem:
         # Just inside the bound, so (q_{k+1} − q_k)/dt never reads above it after rounding.
         self.speed = speed
         self.step = speed * self.dt * (1.0 - 1e-9)
+
+    def position_only(self) -> TrackingProblem:
+        """The same task with its merit on position alone (orientation free, scaled by 0)."""
+        other = copy.copy(self)
+        other.settings = dataclasses.replace(self.settings, orientation_tolerance=None)
+        other.scale = self.scale.copy()
+        if self.pose:
+            other.scale[3:] = 0.0
+        return other
 
     @property
     def nv(self) -> int:

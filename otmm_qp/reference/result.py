@@ -16,7 +16,9 @@ from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 
-ReferenceStatus = Literal["feasible", "infeasible", "failed"]
+ReferenceStatus = Literal["achievable", "unachievable", "undecided", "failed"]
+#: The labels of a task, in report order.
+LABELS: tuple[str, ...] = ("achievable", "unachievable", "undecided", "failed")
 
 #: Task-level columns of the reference (the study contract), in order.
 REFERENCE_COLUMNS: tuple[str, ...] = (
@@ -28,7 +30,47 @@ REFERENCE_COLUMNS: tuple[str, ...] = (
     "reference.min_sigma",
     "reference.near_singular",
     "reference.achievable",
+    "reference.upper",
+    "reference.lower",
+    "reference.position_error",
+    "reference.position_lower",
+    "reference.source",
+    "reference.step",
+    "reference.kkt_residual",
+    "reference.converged",
+    "reference.iterations",
 )
+
+
+@dataclass(frozen=True)
+class Bracket:
+    """Where the min-max lies and how the solve that bounds it from above ended.
+
+    Attributes:
+        upper: ``max_k m_k`` of the best path [tolerances] (no known path within the
+            limits is better).
+        lower: Certified lower bound of the min-max [tolerances]
+            (:func:`~otmm_qp.reference.bound.lower_bound`).
+        position_optimum: Smallest ``max_k ‖e_pos,k‖`` found within the limits [m] — the
+            position-optimal reference (``reference.max_error``).
+        position_lower: Certified lower bound of it [m].
+        source: Which start the best path came from (``damped_ik``, ``joint_path``,
+            ``least_squares``, ``epigraph``, ``perturbed`` or a controller's name).
+        step: ``‖δ‖_∞`` of the epigraph solve's last QP [rad] (NaN: not run).
+        kkt: Its KKT residual [tolerances] (NaN: not run).
+        converged: It stopped on its convergence test.
+        iterations: Its QPs.
+    """
+
+    upper: float
+    lower: float
+    position_optimum: float
+    position_lower: float
+    source: str = "damped_ik"
+    step: float = math.nan
+    kkt: float = math.nan
+    converged: bool = False
+    iterations: int = 0
 
 
 @dataclass
@@ -36,14 +78,16 @@ class ReferenceResult:
     """The reference of one task.
 
     Attributes:
-        status: ``feasible`` (``path`` is within every limit and meets every tolerance: a
-            certificate), ``infeasible`` (the best path found does not), ``failed`` (solver
-            failure or time budget; ``message`` says which, ``path`` is the best found).
+        status: ``achievable`` (``path`` is within every limit and meets every tolerance: a
+            certificate), ``unachievable`` (the certified lower bound exceeds a tolerance),
+            ``undecided`` (neither), ``failed`` (a solver failure and no certificate;
+            ``message`` says why, ``path`` is the best found).
         path: Best joint path found, shape ``(N, nv)`` [rad], ``q_0`` first; always within
             the position and step limits.
         times: Sample times [s], shape ``(N,)``.
         errors: Task errors along ``path``, shape ``(N, n)`` [m, rad].
-        max_error: Largest position error [m].
+        max_error: Largest position error of ``path`` [m] (``reference.position_error``;
+            ``reference.max_error`` is the position optimum, ``bracket.position_optimum``).
         max_orientation_error: Largest orientation error [rad]; NaN for position tasks.
         max_joint_speed: Largest ``|q_{k+1} − q_k|/dt`` [rad/s].
         touches_position_limit: Some sample within ``LIMIT_TOUCH`` of a finite limit.
@@ -53,10 +97,10 @@ class ReferenceResult:
         min_sigma: Smallest of ``sigma``.
         near_singular: ``min_sigma < sigma_s``.
         warm_start_merit: ``max_k m_k`` of the warm start (see ``TrackingProblem.merits``).
-        merit: ``max_k m_k`` of ``path`` (≤ ``warm_start_merit``; ≤ 1 when feasible).
-        iterations: Newton iterations run.
+        merit: ``max_k m_k`` of ``path`` (≤ ``warm_start_merit``; ≤ 1 when achievable).
+        bracket: Upper and lower bounds, the position optimum and the solve's end.
         seconds: Wall time of the solve [s].
-        message: Why the solve failed, else None.
+        message: Why the solve failed (or that the time budget ran out), else None.
     """
 
     status: ReferenceStatus
@@ -74,25 +118,36 @@ class ReferenceResult:
     near_singular: bool
     warm_start_merit: float
     merit: float
+    bracket: Bracket
     seconds: float = 0.0
     message: str | None = None
 
     @property
     def achievable(self) -> bool:
-        """Whether a certificate was found (``status == "feasible"``)."""
-        return self.status == "feasible"
+        """Whether a certificate was found (``status == "achievable"``)."""
+        return self.status == "achievable"
 
     def columns(self) -> dict[str, Any]:
         """The contract's ``reference.*`` columns of this task."""
+        bracket = self.bracket
         return {
             "reference.status": self.status,
-            "reference.max_error": self.max_error,
+            "reference.max_error": bracket.position_optimum,
             "reference.max_orientation_error": self.max_orientation_error,
             "reference.max_joint_speed": self.max_joint_speed,
             "reference.touches_position_limit": self.touches_position_limit,
             "reference.min_sigma": self.min_sigma,
             "reference.near_singular": self.near_singular,
             "reference.achievable": self.achievable,
+            "reference.upper": bracket.upper,
+            "reference.lower": bracket.lower,
+            "reference.position_error": self.max_error,
+            "reference.position_lower": bracket.position_lower,
+            "reference.source": bracket.source,
+            "reference.step": bracket.step,
+            "reference.kkt_residual": bracket.kkt,
+            "reference.converged": bracket.converged,
+            "reference.iterations": bracket.iterations,
         }
 
 
@@ -110,8 +165,10 @@ def summarise(
     status: ReferenceStatus,
     warm_start_merit: float,
     message: str | None = None,
+    errors: FloatArray | None = None,
+    bracket: Bracket | None = None,
 ) -> ReferenceResult:
-    """Evaluate a (feasible) path: errors, speeds, limit contact and σ_min along it.
+    """Evaluate a path within the limits: errors, speeds, limit contact and σ_min along it.
 
     Args:
         problem: The task.
@@ -120,9 +177,12 @@ def summarise(
         status: The solve's outcome.
         warm_start_merit: ``max_k m_k`` of the warm start.
         message: Failure reason.
+        errors: The path's task errors ``(N, n)`` when known (a controller's own record);
+            else computed.
+        bracket: The bounds (None: the path's own merit, lower bound 0).
     """
     robot = problem.robot
-    errors = problem.errors(path)
+    errors = problem.errors(path) if errors is None else np.asarray(errors, dtype=float)
     linear = np.linalg.norm(errors[:, : problem.linear], axis=1)
     rotation = np.linalg.norm(errors[:, 3:], axis=1) if problem.pose else None
     speed = np.abs(velocities(path, problem.dt))
@@ -133,12 +193,16 @@ def summarise(
     near_lo = finite_lo & (path - problem.lower <= LIMIT_TOUCH)
     near_hi = finite_hi & (problem.upper - path <= LIMIT_TOUCH)
     min_sigma = float(np.min(sigma)) if sigma.size else math.nan
+    merit = float(np.max(problem.merits(errors)))
+    max_error = float(np.max(linear))
+    if bracket is None:
+        bracket = Bracket(merit, 0.0, max_error, 0.0)
     return ReferenceResult(
         status=status,
         path=path,
         times=problem.times.copy(),
         errors=errors,
-        max_error=float(np.max(linear)),
+        max_error=max_error,
         max_orientation_error=float(np.max(rotation)) if rotation is not None else math.nan,
         max_joint_speed=float(np.max(speed)) if speed.size else 0.0,
         touches_position_limit=bool(np.any(near_lo | near_hi)),
@@ -148,7 +212,8 @@ def summarise(
         min_sigma=min_sigma,
         near_singular=bool(min_sigma < problem.settings.sigma_s),
         warm_start_merit=warm_start_merit,
-        merit=float(np.max(problem.merits(errors))),
+        merit=merit,
+        bracket=bracket,
         message=message,
     )
 

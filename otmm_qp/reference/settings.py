@@ -33,6 +33,13 @@ class ReferenceSettings:
         iterations: Newton iterations of the least-squares phase.
         minimax_rounds: Lawson re-weighting rounds toward the min-max error (only when the
             least-squares path misses a tolerance).
+        polish_iterations: Cap on the epigraph min-max QPs per start
+            (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`; it stops earlier on its
+            convergence test).
+        starts: Best distinct starts (damped IK, the task's joint path, controller paths)
+            the epigraph solve is run from, when no start meets the tolerances.
+        perturbations: Extra starts: the best path plus seeded joint noise.
+        seed: Seed of the perturbations.
     """
 
     position_tolerance: float | None = 0.01
@@ -42,6 +49,10 @@ class ReferenceSettings:
     time_budget: float = 30.0
     iterations: int = 6
     minimax_rounds: int = 1
+    polish_iterations: int = 20
+    starts: int = 1
+    perturbations: int = 0
+    seed: int = 0
 
     def __post_init__(self) -> None:
         """Check every field.
@@ -54,7 +65,14 @@ class ReferenceSettings:
         _positive("reference.speed_limit", self.speed_limit)
         _positive("reference.sigma_s", self.sigma_s, allow_none=False)
         _positive("reference.time_budget", self.time_budget, allow_none=False)
-        for name in ("iterations", "minimax_rounds"):
+        for name in (
+            "iterations",
+            "minimax_rounds",
+            "polish_iterations",
+            "starts",
+            "perturbations",
+            "seed",
+        ):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 0:
                 raise ParameterError(f"reference.{name}", f"must be an integer >= 0, got {value!r}")

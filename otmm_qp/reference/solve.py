@@ -1,41 +1,55 @@
-r"""The offline-optimal reference of one task: warm start, least squares, min-max refinement.
+r"""The offline reference of one task: a certified bracket ``lower ≤ min-max ≤ upper``.
 
-The solver sees the whole desired path ``x_d(t_k)``, ``k = 0..N−1``, and looks for
+The solver sees the whole desired path ``x_d(t_k)``, ``k = 0..N−1``, and brackets
 
 .. math::
     \min_{q_1..q_{N-1}} \max_k m_k(q_k) \quad\text{s.t.}\quad l \le q_k \le u,\quad
     |q_k - q_{k-1}| \le v_{max}\,dt,\quad q_0 \text{ given},
 
-``m_k = max(‖e_pos,k‖/tol_pos, ‖e_rot,k‖/tol_rot)``. Three phases, each keeping the path
-within every limit:
+``m_k = max(‖e_pos,k‖/tol_pos, ‖e_rot,k‖/tol_rot)``. Every path it keeps is within every
+limit:
 
-1. **Warm start**: per-sample damped IK, rate-limited and clipped
-   (:func:`~otmm_qp.reference.warm_start.damped_ik_path`), or the trajectory's own joint
-   path when it has one and it is better
-   (:func:`~otmm_qp.reference.warm_start.joint_path_start`).
-2. **Least squares**: trust-region Newton over the stacked ``½‖S e_k‖²`` with sequential
-   QPs (:class:`~otmm_qp.reference.sqp.SequentialQP`), until it converges or every error
-   is below ``SETTLE`` = 1 % of its tolerance. Where the limits do not bind, the
-   samples decouple and this is each sample's own best, so also the min-max.
-3. **Min-max** (only if (2) misses a tolerance): Lawson re-weighting
-   ``ω_k ← ω_k m_k / mean(ω m)``, a few Newton steps per round, which moves the
-   least-squares solution toward the min-max one where the speed limits couple samples.
+1. **Starts**: per-sample damped IK (:func:`~otmm_qp.reference.warm_start.damped_ik_path`),
+   the trajectory's own joint path when it has one, and the *candidates* — joint paths a
+   controller ran on the task within every limit (:class:`Candidate`, with their own errors).
+2. **Least squares** from the better of the first two: trust-region Newton with OSQP
+   (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
+   start.
+3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
+   epigraph SQP
+   (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`) from the ``starts`` best distinct
+   paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
+   (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
+   half of it for the others; a task already achievable gets the best start only, with
+   half the cap), within the time budget; it stops early once the bracket is closed
+   (``upper − lower ≤ 1e-6 upper``).
+4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
+   limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
+5. **Position optimum** (the one reference of every claim about *position* error:
+   oracle-relative error, graceful position bound, trade-off): the smallest
+   ``max_k ‖e_pos,k‖`` over every path above, polished by the epigraph SQP on position alone
+   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
+   Position tasks: the same path as the upper bound.
 
-The path with the smallest ``max_k m_k`` over all phases is returned, so the result is never
-worse than the warm start. ``max_k m_k ≤ 1`` is a certificate (a concrete path, checked with
-the true forward kinematics); otherwise the returned error is an upper bound on the
-achievable one — a local method, it cannot prove that no better path exists.
+Label: ``achievable`` (a stored path meets every tolerance), ``unachievable`` (the lower
+bound exceeds them: certified), ``undecided`` (neither); ``failed`` when a solver failed
+and no certificate exists (``message`` says why). Running out of the time budget is not a
+failure: the best path so far is the upper bound.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from otmm_qp.reference.bound import LowerBound, lower_bound
+from otmm_qp.reference.epigraph import EpigraphOutcome, EpigraphSQP
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
-from otmm_qp.reference.result import ReferenceResult, ReferenceStatus, summarise
+from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
 from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
@@ -49,6 +63,61 @@ ROUND_ITERATIONS = 2
 SETTLE = 1e-2
 #: Smallest Lawson weight (relative to the mean), so no sample is dropped for good.
 WEIGHT_FLOOR = 1e-6
+#: Relative slack on a candidate's joint steps (its ``q̇ dt`` after rounding) [-].
+STEP_SLACK = 1e-9
+#: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
+GAP_TOLERANCE = 1e-6
+#: Standard deviation of the seeded perturbation starts [rad].
+PERTURBATION = 0.05
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A known joint path on the task: a controller's run, with its own recorded errors.
+
+    Attributes:
+        name: Where it comes from (the controller's name).
+        path: Joint coordinates ``(N, nv)`` at ``t_k = k dt`` [rad or m].
+        errors: Its task errors ``(N, n)`` as recorded by the run [m, rad].
+        max_error: Its ``max_error`` metric [m] (the row's value, so the reference's
+            position optimum is never above it, to the last bit).
+    """
+
+    name: str
+    path: FloatArray
+    errors: FloatArray
+    max_error: float
+
+
+@dataclass
+class _Path:
+    """A path of the pool: its merit, errors, largest position error [m] and origin."""
+
+    path: FloatArray
+    errors: FloatArray
+    merit: float
+    position: float
+    source: str
+
+
+def admissible(problem: TrackingProblem, path: FloatArray, errors: FloatArray) -> bool:
+    """Whether a candidate path keeps every limit the reference keeps.
+
+    Same shape and start ``q_0`` as the reference, finite, inside the position limits and
+    with every step within ``v_max dt`` (up to :data:`STEP_SLACK` relative).
+    """
+    path = np.asarray(path, dtype=float)
+    shape = (problem.samples, problem.nv)
+    if path.shape != shape or errors.shape != (problem.samples, problem.robot.task_dim):
+        return False
+    if not (np.all(np.isfinite(path)) and np.all(np.isfinite(errors))):
+        return False
+    if not np.array_equal(path[0], problem.q0):
+        return False
+    if np.any(path < problem.lower) or np.any(path > problem.upper):
+        return False
+    limit = problem.speed * problem.dt * (1.0 + STEP_SLACK)
+    return bool(np.all(np.abs(np.diff(path, axis=0)) <= limit))
 
 
 def solve_reference(
@@ -59,8 +128,9 @@ def solve_reference(
     duration: float,
     settings: ReferenceSettings | None = None,
     task_weight: FloatArray | None = None,
+    candidates: Sequence[Candidate] = (),
 ) -> tuple[ReferenceResult, TrackingProblem]:
-    """Best joint path within the limits for a task (see the module docstring).
+    """The reference of a task (see the module docstring).
 
     Args:
         robot: The arm.
@@ -70,10 +140,11 @@ def solve_reference(
         duration: Horizon [s] (``max(1, round(duration/dt))`` samples, as a simulation).
         settings: Tolerances, speed cap and budget (defaults: :class:`ReferenceSettings`).
         task_weight: Task weight ``(n,)`` of the reported σ_min (None: identity).
+        candidates: Known paths (controller runs); those not :func:`admissible` are ignored.
 
     Returns:
-        ``(result, problem)``. A solver failure or the time budget gives
-        ``status = "failed"`` with the best path found so far; it never raises for them.
+        ``(result, problem)``. A solver failure gives ``status = "failed"`` with the best
+        path found so far; it never raises for it.
 
     Raises:
         NotWithinJointLimits: ``q0`` is outside the position limits (bad input).
@@ -84,69 +155,176 @@ def solve_reference(
     robot.check_start(q0)
     problem = TrackingProblem(robot, trajectory, q0, dt, duration, settings)
     deadline = tic + settings.time_budget
-    warm = damped_ik_path(problem)
-    warm_merit = float(np.max(problem.merits(problem.errors(warm))))
-    given = joint_path_start(problem, trajectory)
-    if given is not None:
-        given_merit = float(np.max(problem.merits(problem.errors(given))))
-        if given_merit < warm_merit:
-            warm, warm_merit = given, given_merit
-    best, best_merit = warm, warm_merit
+    bound = lower_bound(problem)
+    pool, warm_merit = _starts(problem, trajectory, candidates)
     message: str | None = None
-    if problem.samples > 1:
-        try:
-            best, best_merit = _optimise(problem, warm, warm_merit, deadline)
-        except _Stopped as stop:
-            best, best_merit, message = stop.best, stop.merit, stop.reason
-    status: ReferenceStatus = "feasible" if best_merit <= 1.0 else "infeasible"
-    if message is not None and status != "feasible":
+    polish = EpigraphOutcome(pool[0].path, pool[0].merit)
+    try:
+        if problem.samples > 1:
+            start = min(pool[:2], key=lambda entry: entry.merit)
+            _least_squares(problem, start, pool, deadline)
+            if min(entry.merit for entry in pool) > SETTLE:
+                polish = _polish(problem, pool, bound.value, deadline)
+    except SolverFailure as error:
+        message = f"solver failure: {error}"
+    best = min(pool, key=lambda entry: entry.merit)
+    position, position_lower = _position_optimum(problem, pool, bound, deadline)
+    status: ReferenceStatus = _label(best.merit, bound.value)
+    if message is not None and status != "achievable":
         status = "failed"
-    else:
-        message = None
-    result = summarise(problem, best, task_weight, status, warm_merit, message)
+    elif message is None and time.perf_counter() > deadline:
+        message = f"time budget of {settings.time_budget:g} s reached (best path so far kept)"
+    bracket = Bracket(
+        upper=best.merit,
+        lower=bound.value,
+        position_optimum=position,
+        position_lower=position_lower,
+        source=best.source,
+        step=polish.step,
+        kkt=polish.kkt,
+        converged=polish.converged,
+        iterations=polish.iterations,
+    )
+    result = summarise(
+        problem, best.path, task_weight, status, warm_merit, message, best.errors, bracket
+    )
     result.seconds = time.perf_counter() - tic
     return result, problem
 
 
-class _Stopped(Exception):
-    """Carries the best path when a phase stops on a failure or the budget."""
+def _label(upper: float, lower: float) -> ReferenceStatus:
+    """``achievable`` (upper ≤ 1), ``unachievable`` (lower > 1) or ``undecided``."""
+    if upper <= 1.0:
+        return "achievable"
+    return "unachievable" if lower > 1.0 else "undecided"
 
-    def __init__(self, best: FloatArray, merit: float, reason: str) -> None:
-        self.best, self.merit, self.reason = best, merit, reason
-        super().__init__(reason)
+
+def _entry(problem: TrackingProblem, path: FloatArray, source: str) -> _Path:
+    errors = problem.errors(path)
+    return _Path(
+        path,
+        errors,
+        float(np.max(problem.merits(errors))),
+        float(np.max(np.linalg.norm(errors[:, : problem.linear], axis=1))),
+        source,
+    )
 
 
-def _optimise(
-    problem: TrackingProblem, warm: FloatArray, warm_merit: float, deadline: float
-) -> tuple[FloatArray, float]:
-    """Phases 2 and 3 from the warm start: the best path and its merit."""
+def _starts(
+    problem: TrackingProblem, trajectory: Trajectory, candidates: Sequence[Candidate]
+) -> tuple[list[_Path], float]:
+    """The pool: damped IK, the joint path (if any), then the admissible candidates."""
+    pool = [_entry(problem, damped_ik_path(problem), "damped_ik")]
+    given = joint_path_start(problem, trajectory)
+    if given is not None:
+        pool.append(_entry(problem, given, "joint_path"))
+    warm_merit = min(entry.merit for entry in pool)
+    for candidate in candidates:
+        errors = np.asarray(candidate.errors, dtype=float)
+        if admissible(problem, candidate.path, errors):
+            merit = float(np.max(problem.merits(errors)))
+            path = np.array(candidate.path, dtype=float)
+            pool.append(_Path(path, errors, merit, float(candidate.max_error), candidate.name))
+    return pool, warm_merit
+
+
+def _least_squares(
+    problem: TrackingProblem, start: _Path, pool: list[_Path], deadline: float
+) -> None:
+    """Newton on the least squares, then Lawson rounds; every better path joins ``pool``."""
     settings = problem.settings
     sqp = SequentialQP(problem)
-    best, best_merit = warm, warm_merit
     weights = np.ones(problem.samples - 1)
-
-    def keep(path: FloatArray) -> FloatArray:
-        nonlocal best, best_merit
-        merits = problem.merits(problem.errors(path))
-        if float(np.max(merits)) < best_merit:
-            best, best_merit = path, float(np.max(merits))
-        return merits
-
-    path = warm
+    path = start.path
     try:
         path = sqp.improve(path, weights, settings.iterations, deadline, settle=SETTLE)
-        merits = keep(path)
-        for _ in range(settings.minimax_rounds if best_merit > 1.0 else 0):
+        entry = _entry(problem, path, "least_squares")
+        pool.append(entry)
+        for _ in range(settings.minimax_rounds if entry.merit > 1.0 else 0):
+            merits = problem.merits(entry.errors)
             weights = weights * np.maximum(merits[1:], WEIGHT_FLOOR)
             weights = np.maximum(weights / np.mean(weights), WEIGHT_FLOOR)
             path = sqp.improve(path, weights, ROUND_ITERATIONS, deadline)
-            merits = keep(path)
-            if best_merit <= 1.0:
+            entry = _entry(problem, path, "least_squares")
+            pool.append(entry)
+            if entry.merit <= 1.0:
                 break
     except TimeBudgetExceeded:
-        raise _Stopped(
-            best, best_merit, f"time budget of {settings.time_budget:g} s exceeded"
-        ) from None
-    except SolverFailure as error:
-        raise _Stopped(best, best_merit, f"solver failure: {error}") from None
-    return project_path(best, problem.lower, problem.upper, problem.step), best_merit
+        return
+
+
+def _distinct(pool: list[_Path], count: int, key: str) -> list[_Path]:
+    """The ``count`` best entries by ``key`` with pairwise different paths."""
+    chosen: list[_Path] = []
+    for entry in sorted(pool, key=lambda e: getattr(e, key)):
+        if len(chosen) >= count:
+            break
+        if all(not np.array_equal(entry.path, other.path) for other in chosen):
+            chosen.append(entry)
+    return chosen
+
+
+def _polish(
+    problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float
+) -> EpigraphOutcome:
+    """Epigraph SQP from the best start, then from the next ones until the bracket closes.
+
+    The next ones: the next best distinct starts and seeded perturbations of the best;
+    every result joins ``pool``.
+
+    Returns:
+        The outcome of the solve that found the best path (its step and KKT residual).
+    """
+    settings = problem.settings
+    solver = EpigraphSQP(problem)
+    certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
+    starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
+    rng = np.random.default_rng(settings.seed)
+    for _ in range(0 if certified else settings.perturbations):
+        noisy = starts[0] + rng.normal(0.0, PERTURBATION, starts[0].shape)
+        noisy[0] = problem.q0
+        starts.append(project_path(noisy, problem.lower, problem.upper, problem.step))
+    perturbed = 0 if certified else settings.perturbations
+    outcomes: list[EpigraphOutcome] = []
+    for index, path in enumerate(starts):
+        if time.perf_counter() > deadline:
+            break
+        if outcomes and _closed(min(o.merit for o in outcomes), lower):
+            break  # certified optimal to GAP_TOLERANCE: another start cannot do better
+        cap = settings.polish_iterations // (2 if index > 0 or certified else 1)
+        outcome = solver.solve(path, cap, deadline)
+        outcomes.append(outcome)
+        source = "epigraph" if index < len(starts) - perturbed else "perturbed"
+        pool.append(_entry(problem, outcome.path, source))
+    if not outcomes:
+        return EpigraphOutcome(pool[0].path, pool[0].merit)
+    return min(outcomes, key=lambda o: o.merit)
+
+
+def _closed(upper: float, lower: float) -> bool:
+    """Whether ``upper − lower ≤ GAP_TOLERANCE · upper`` (the optimum is pinned)."""
+    return upper - lower <= GAP_TOLERANCE * upper
+
+
+def _position_optimum(
+    problem: TrackingProblem, pool: list[_Path], bound: LowerBound, deadline: float
+) -> tuple[float, float]:
+    """Smallest largest position error [m] over the pool, polished on position alone."""
+    best = min(pool, key=lambda entry: entry.position)
+    value = best.position
+    settings = problem.settings
+    tolerance = settings.position_tolerance
+    alone = problem.pose and settings.orientation_tolerance is not None
+    if not alone or problem.samples < 2 or tolerance is None or value <= tolerance:
+        return value, bound.position_value
+    if time.perf_counter() > deadline:
+        return value, bound.position_value
+    position = problem.position_only()
+    try:
+        cap = settings.polish_iterations // 2
+        outcome = EpigraphSQP(position).solve(best.path, cap, deadline)
+    except SolverFailure:
+        return value, bound.position_value
+    errors = problem.errors(outcome.path)
+    polished = float(np.max(np.linalg.norm(errors[:, : problem.linear], axis=1)))
+    return min(value, polished), bound.position_value

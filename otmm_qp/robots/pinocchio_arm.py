@@ -298,6 +298,12 @@ class PinocchioArm(Robot):
                 )
 
     def _default_position_limits(self) -> tuple[FloatArray, FloatArray]:
+        """The URDF's limits; refused when one is reversed or none leaves room to move.
+
+        Raises:
+            RobotLoadError: A joint with ``lower > upper``, or every joint with
+                ``lower == upper`` (no target but the start's own pose is reachable).
+        """
         lower = np.full(self.model.nv, -np.inf)
         upper = np.full(self.model.nv, np.inf)
         for jid in range(1, self.model.njoints):
@@ -305,6 +311,16 @@ class PinocchioArm(Robot):
             if joint.nq == 1:  # revolute / prismatic; continuous joints stay unbounded
                 lower[joint.idx_v] = self.model.lowerPositionLimit[joint.idx_q]
                 upper[joint.idx_v] = self.model.upperPositionLimit[joint.idx_q]
+                if lower[joint.idx_v] > upper[joint.idx_v]:
+                    raise RobotLoadError(
+                        f"urdf: joint {self.model.names[jid]!r} has lower limit "
+                        f"{lower[joint.idx_v]:g} > upper {upper[joint.idx_v]:g}"
+                    )
+        if lower.size and np.all(upper - lower <= 0.0):
+            raise RobotLoadError(
+                "urdf: every joint's position limits are lower == upper: the arm cannot move, "
+                "so every target but its start pose is unreachable"
+            )
         return lower, upper
 
     def _reach_bound(self) -> float:

@@ -16,10 +16,12 @@ import numpy as np
 
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
+from otmm_qp.reference import Candidate
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.oracle import (
+    OFFLINE,
     REFERENCE_INDEX,
     failed_columns,
     oracle_columns,
@@ -45,11 +47,14 @@ class WorkUnit:
         task: Which task (robot, generator entry, index, seed).
         episodes: ``(key, controller index, loop mode)`` of each episode to run.
         time_series: Also return sampled time series.
+        reference: The task's stored ``reference.*`` columns (``task_reference`` of its
+            oracle row) when its reference episode is stored already, as sorted items.
     """
 
     task: StudyTask
     episodes: tuple[tuple[str, int, str], ...]
     time_series: bool = False
+    reference: tuple[tuple[str, Any], ...] | None = None
 
 
 @dataclass
@@ -150,66 +155,103 @@ def _build(config: StudyConfig, unit: WorkUnit) -> tuple[BuiltTask | None, str |
 
 
 def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> None:
-    """Generate the unit's task and run its episodes, appending rows (never raising)."""
+    """Generate the unit's task and run its episodes, appending rows (never raising).
+
+    The controllers run first: every path of theirs that kept the limits is a candidate of
+    the task's reference, solved next (so no known path beats it); then every controller
+    row's stored ``success`` is judged with that reference, by the rule the report applies.
+    A resumed task whose reference row is stored already is judged with the stored one
+    (``unit.reference``). The reference row comes first in the rows, as before.
+    """
+    config, controllers = _study(payload)
+    built, task_error = _build(config, unit)
+    rows: list[dict[str, Any]] = []
+    candidates: list[Candidate] = []
+    oracle_key: str | None = None
+    for key, controller, mode in unit.episodes:
+        if controller == REFERENCE_INDEX:
+            oracle_key = key
+            continue
+        row = _base_row(config, controllers, unit, key, controller, mode)
+        if built is None:
+            row.update(status="error", error_message=task_error, success=False)
+            rows.append(row)
+            continue
+        row.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
+        row["duration"] = built.duration
+        run = _controller_episode(config, controllers[controller], controller, row, built)
+        if run is not None:
+            if unit.time_series:
+                result.series.append(_series(run, key, config.time_series.stride))
+            if row["status"] == "ok":
+                candidates.append(
+                    Candidate(str(row["controller"]), run.q, run.error, float(row["max_error"]))
+                )
+        rows.append(row)
+    reference = dict(unit.reference or {})
+    if oracle_key is not None:
+        oracle = _base_row(config, controllers, unit, oracle_key, REFERENCE_INDEX, OFFLINE)
+        if built is None:
+            oracle.update(status="error", error_message=task_error, success=False)
+            oracle.update(failed_columns(str(task_error)), status="error")
+        else:
+            oracle.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
+            oracle["duration"] = built.duration
+            oracle = _oracle_row(config, oracle, built, candidates)
+            reference = task_reference(oracle)
+        result.rows.append(oracle)
+    elif not reference and config.reference.enabled and built is not None:
+        reference = task_reference(
+            _oracle_row(config, {"duration": built.duration}, built, candidates)
+        )
+    for row in rows:
+        if row.get("status") != "error":
+            row["success"] = is_success({**reference, **row}, config.success)
+    result.rows.extend(rows)
+
+
+def _controller_episode(
+    config: StudyConfig,
+    spec: ControllerConfig,
+    index: int,
+    row: dict[str, Any],
+    built: BuiltTask,
+) -> RunResult | None:
+    """Run one controller episode into ``row`` (metrics, status); its run, or None on error."""
     from otmm_qp.runner.build import build_controller
     from otmm_qp.runner.episode import run_episode
     from otmm_qp.runner.plant_stage import build_stage
 
-    config, controllers = _study(payload)
     settings = MetricSettings(**config.metrics.model_dump())
-    built, task_error = _build(config, unit)
-    # The reference first: every controller row's stored ``success`` is judged with it, by
-    # the rule the report applies (graceful criteria on the tasks it cannot meet).
-    episodes = sorted(unit.episodes, key=lambda episode: episode[1] != REFERENCE_INDEX)
-    reference: dict[str, Any] = {}
-    if (
-        config.reference.enabled
-        and built is not None
-        and all(controller != REFERENCE_INDEX for _, controller, _ in episodes)
-    ):  # the task's reference row is stored already (a resumed study): solve it again
-        reference = task_reference(_oracle_row(config, {"duration": built.duration}, built))
-    for key, controller, mode in episodes:
-        row = _base_row(config, controllers, unit, key, controller, mode)
-        if built is not None:
-            row.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
-        if built is None:
-            row.update(status="error", error_message=task_error, success=False)
-            if controller == REFERENCE_INDEX:
-                row.update(failed_columns(str(task_error)), status="error")
-            result.rows.append(row)
-            continue
-        row["duration"] = built.duration
-        if controller == REFERENCE_INDEX:
-            oracle = _oracle_row(config, row, built)
-            reference = task_reference(oracle)
-            result.rows.append(oracle)
-            continue
-        try:
-            made = build_controller(
-                controllers[controller], f"controllers.{controller}", settings.blow_up_speed
-            )
-            stage = build_stage(controllers[controller])
-            episode = study_episode(config, built, mode)
-            record = run_episode(episode, made, settings, stage)
-        except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
-            row.update(status="error", error_message=one_line(error), success=False)
-            result.rows.append(row)
-            continue
-        run, metrics = record.result, record.metrics
-        row.update({name: metrics.get(name) for name in METRIC_NAMES})
-        row.update(speed_ratios(run))
-        row["status"] = "ok" if run.error_message is None else "stopped"
-        row["error_message"] = run.error_message
-        row["success"] = is_success({**reference, **row}, config.success)
-        result.rows.append(row)
-        if unit.time_series:
-            result.series.append(_series(run, key, config.time_series.stride))
+    try:
+        made = build_controller(spec, f"controllers.{index}", settings.blow_up_speed)
+        stage = build_stage(spec)
+        episode = study_episode(config, built, str(row["loop_mode"]))
+        record = run_episode(episode, made, settings, stage)
+    except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
+        row.update(status="error", error_message=one_line(error), success=False)
+        return None
+    run, metrics = record.result, record.metrics
+    row.update({name: metrics.get(name) for name in METRIC_NAMES})
+    row.update(speed_ratios(run))
+    row["status"] = "ok" if run.error_message is None else "stopped"
+    row["error_message"] = run.error_message
+    return run
 
 
-def _oracle_row(config: StudyConfig, row: dict[str, Any], built: BuiltTask) -> dict[str, Any]:
+def _oracle_row(
+    config: StudyConfig,
+    row: dict[str, Any],
+    built: BuiltTask,
+    candidates: list[Candidate],
+) -> dict[str, Any]:
     """The task's reference row (never raising: an unexpected error is a ``failed`` row)."""
     try:
-        row.update(oracle_columns(config, built.robot, built.weight, built.task, built.duration))
+        row.update(
+            oracle_columns(
+                config, built.robot, built.weight, built.task, built.duration, candidates
+            )
+        )
     except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
         row.update(failed_columns(f"reference: {one_line(error)}"), success=False)
         return row

@@ -23,11 +23,14 @@ from types import FrameType
 from typing import Any
 
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
+from otmm_qp.studies.oracle import REFERENCE_INDEX, task_reference
 from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
 from otmm_qp.studies.spec import StudyPlan
 from otmm_qp.studies.storage import (
+    EPISODES,
     PartWriter,
     prepare_directory,
+    read_study,
     stored_keys,
     study_id,
     write_marker,
@@ -73,10 +76,16 @@ class StudyOutcome:
     interrupted: bool = False
 
 
-def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
+def make_chunks(
+    plan: StudyPlan,
+    done: set[str],
+    references: dict[tuple[int, int, int], tuple[tuple[str, Any], ...]] | None = None,
+) -> list[list[WorkUnit]]:
     """Group the missing episodes by task, then tasks into chunks of ``chunk_size``.
 
-    Tasks are ordered by index first (round-robin over robots and generators).
+    Tasks are ordered by index first (round-robin over robots and generators). A task whose
+    reference row is stored already carries its ``reference.*`` columns (``references``,
+    from :func:`stored_references`), so its new rows are judged with the stored reference.
     """
     config = plan.config
     by_task: dict[tuple[int, int, int], list[tuple[str, int, str]]] = {}
@@ -87,11 +96,13 @@ def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
         task = (episode.robot, episode.generator, episode.task_index)
         by_task.setdefault(task, []).append((episode.key, episode.controller, episode.loop_mode))
         seeds[task] = episode.seed
+    references = references or {}
     units = [
         WorkUnit(
             StudyTask(task[0], task[1], task[2], seeds[task]),
             tuple(episodes),
             time_series=task[2] < config.time_series.tasks,
+            reference=references.get(task),
         )
         for task, episodes in by_task.items()
     ]
@@ -99,6 +110,27 @@ def make_chunks(plan: StudyPlan, done: set[str]) -> list[list[WorkUnit]]:
     units.sort(key=lambda u: (u.task.index, u.task.robot, u.task.generator))
     size = config.chunk_size
     return [units[i : i + size] for i in range(0, len(units), size)]
+
+
+def stored_references(
+    plan: StudyPlan, done: set[str], out: Path, ident: str
+) -> dict[tuple[int, int, int], tuple[tuple[str, Any], ...]]:
+    """``task → reference.* columns`` of the tasks with a stored reference and missing rows.
+
+    Their new rows are judged with the stored reference (``--resume``).
+    """
+    missing = {(e.robot, e.generator, e.task_index) for e in plan.episodes if e.key not in done}
+    tasks = {
+        e.key: (e.robot, e.generator, e.task_index)
+        for e in plan.episodes
+        if e.controller == REFERENCE_INDEX and e.key in done
+    }
+    wanted = {key for key, task in tasks.items() if task in missing}
+    if not wanted:
+        return {}
+    data = read_study(out, EPISODES, ident, wanted)
+    rows = [] if data.table is None else data.table.to_pylist()
+    return {tasks[r["episode_key"]]: tuple(sorted(task_reference(r).items())) for r in rows}
 
 
 def payload_of(plan: StudyPlan) -> dict[str, Any]:
@@ -282,7 +314,7 @@ def _run_claimed(
         print(f"otmm-qp: resume ignored {line}", file=sys.stderr)
     _write_study_marker(out, plan, source, ident)
     outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
-    chunks = make_chunks(plan, done)
+    chunks = make_chunks(plan, done, stored_references(plan, done, out, ident))
     payload = payload_of(plan)
     writer = PartWriter(out, ident, plan.task_columns)
     written: set[str] = set(done)

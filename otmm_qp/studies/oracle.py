@@ -10,10 +10,17 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
-from otmm_qp.reference import REFERENCE_COLUMNS, ReferenceSettings, as_run, solve_reference
+from otmm_qp.reference import (
+    REFERENCE_COLUMNS,
+    Candidate,
+    ReferenceSettings,
+    as_run,
+    solve_reference,
+)
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
 from otmm_qp.studies.schema import StudyConfig
@@ -50,6 +57,9 @@ def reference_settings(config: StudyConfig) -> ReferenceSettings:
         time_budget=reference.time_budget,
         iterations=reference.iterations,
         minimax_rounds=reference.minimax_rounds,
+        polish_iterations=reference.polish_iterations,
+        starts=reference.starts,
+        perturbations=reference.perturbations,
     )
 
 
@@ -73,6 +83,9 @@ def failed_columns(message: str) -> dict[str, Any]:
             "reference.touches_position_limit": False,
             "reference.near_singular": False,
             "reference.achievable": False,
+            "reference.converged": False,
+            "reference.source": "none",
+            "reference.iterations": 0,
             "error_message": message,
         }
     )
@@ -85,11 +98,13 @@ def oracle_columns(
     weight: FloatArray | None,
     task: Task,
     duration: float,
+    candidates: Sequence[Candidate] = (),
 ) -> dict[str, Any]:
     """Solve the task's reference; its metrics, ``reference.*`` columns and status.
 
-    A solver failure or time-out is ``reference.status = "failed"`` (``error_message`` says
-    which) with the metrics of the best path found; it never raises for them.
+    ``candidates`` are the task's controller paths (those that kept every limit count). A
+    solver failure is ``reference.status = "failed"`` (``error_message`` says why) with the
+    metrics of the best path found; it never raises for it.
     """
     result, problem = solve_reference(
         robot,
@@ -99,6 +114,7 @@ def oracle_columns(
         duration,
         reference_settings(config),
         weight,
+        candidates,
     )
     metrics = compute_metrics(
         as_run(result, problem), MetricSettings(**config.metrics.model_dump())

@@ -5,7 +5,8 @@
 and ``DIR/figures/*.png``. Every number in them is computed here from the stored rows.
 
 Per robot the report leads with the verdict in plain words — which controller to pick for
-singular crossings, for beyond-reach motion and for limit-bound motion, each backed by the
+singular crossings, for tasks certified unachievable, for undecided ones (the reference's
+bracket labels) and for limit-bound motion, each backed by the
 exact McNemar test on the same tasks, and the most accurate one by the Wilcoxon test of the
 oracle-relative error — and a Pareto figure, then the failure causes per controller and
 generator, the worst episode of each controller (with its id for ``otmm-qp study show``) and
@@ -60,6 +61,7 @@ from otmm_qp.studies.statistics import (
 from otmm_qp.studies.verdicts import (
     RESAMPLES,
     TaskGroup,
+    bracket_summary,
     check_highlight,
     decide_group,
     median_intervals,
@@ -161,6 +163,32 @@ def generator_table(rows: Rows) -> list[str]:
             cells.append(f"{rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return lines
+
+
+def bracket_table(rows: Rows, robot: str) -> list[str]:
+    """The reference's bracket per kind of task (:func:`.verdicts.bracket_summary`)."""
+    summary = bracket_summary(rows, robot)
+    if not summary:
+        return []
+    out = [
+        f"### Reference bracket on {robot}",
+        "",
+        "Per kind of task: the reference's labels (achievable: a stored path meets every "
+        "tolerance within every limit; unachievable: its certified lower bound exceeds a "
+        "tolerance; undecided: neither) and the gap upper − lower of its bracket of the "
+        "min-max error, in tolerances (0: the optimum is pinned).",
+        "",
+        "| kind of task | tasks | achievable / unachievable / undecided / failed "
+        "| median gap | 90th percentile gap |",
+        "|---|---|---|---|---|",
+    ]
+    for row in summary:
+        counts = "/".join(str(c) for c in row.counts)
+        out.append(
+            f"| {row.kind} | {row.tasks} | {counts} | {_fmt(row.median_gap)} | "
+            f"{_fmt(row.p90_gap)} |"
+        )
+    return [*out, ""]
 
 
 def group_verdict(group: TaskGroup) -> str:
@@ -376,6 +404,7 @@ def _robot_section(
 ) -> list[str]:
     """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
     out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    out += bracket_table(rows, robot)
     if fronts:
         out += [f"### Pareto fronts on {robot}", "", *summary_table(fronts, _ours(highlight)), ""]
     pareto = _pareto_path(robot)

@@ -147,12 +147,18 @@ class ReferenceConfig(Strict):
 
     Attributes:
         enabled: Compute it.
-        time_budget: Wall-clock budget per task [s]; past it the reference is ``failed``.
+        time_budget: Wall-clock budget per task [s]; the solve stops at it with the best
+            path so far (the upper bound; ``failed`` only on a solver failure).
         speed_bound: ``criteria``: joint speeds within the robot's limits *and* the
             success criterion ``max_joint_speed`` (a certificate then means a controller could
             succeed); ``robot``: within the robot's limits only.
         iterations: Newton iterations of the least-squares phase.
         minimax_rounds: Min-max re-weighting rounds (only when a tolerance is missed).
+        polish_iterations: Cap on the epigraph min-max QPs per start (it stops earlier on
+            its convergence test: step and KKT residual).
+        starts: Best distinct starts the min-max solve runs from (damped IK, the task's joint
+            path, the least-squares path, controller paths that kept every limit).
+        perturbations: Extra starts: the best path plus seeded joint noise.
     """
 
     enabled: bool = True
@@ -160,6 +166,9 @@ class ReferenceConfig(Strict):
     speed_bound: Literal["criteria", "robot"] = "criteria"
     iterations: int = Field(6, ge=0)
     minimax_rounds: int = Field(1, ge=0)
+    polish_iterations: int = Field(20, ge=0)
+    starts: int = Field(1, ge=1)
+    perturbations: int = Field(0, ge=0)
 
 
 #: Generator parameters that set how much work one task may take (each bounded by

@@ -27,7 +27,7 @@ from otmm_qp.studies.columns import number
 from otmm_qp.studies.criteria import is_achievable
 from otmm_qp.studies.fronts import GroupFront, group_fronts
 from otmm_qp.studies.oracle import REFERENCE_NAME
-from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, task_key
+from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, task_key, task_of
 from otmm_qp.studies.statistics import (
     Interval,
     PairedRates,
@@ -45,6 +45,14 @@ RESAMPLES = 2000
 #: What a group's verdict says: no tasks, one controller only, nobody succeeds, no paired
 #: test separates the controllers, or a pick.
 Outcome = Literal["no tasks", "single", "none succeeds", "not separated", "pick"]
+
+
+#: Labels of the kinds of task the reference's bracket decides (see :func:`task_groups`).
+UNACHIEVABLE = "unachievable (certified)"
+UNDECIDED = "undecided"
+
+#: The reference's labels (``reference.status``), in the order the bracket table counts them.
+BRACKET_LABELS = ("achievable", "unachievable", "undecided", "failed")
 
 
 @dataclass(frozen=True)
@@ -66,11 +74,14 @@ def _flag(row: dict[str, Any], name: str) -> bool:
 
 
 def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
-    """Singular crossings, beyond-reach and limit-bound tasks of ``robot``'s competitor rows.
+    """The kinds of task of ``robot``'s competitor rows (the one place their labels are set).
 
-    With a reference: ``reference.near_singular`` and achievable, ``reference.achievable``
-    false, ``reference.touches_position_limit``; without one, by generator (``near_singular``
-    and ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
+    With a reference: singular crossings (``reference.near_singular`` and achievable),
+    *unachievable (certified)* and *undecided* (``reference.status``: the bracket's labels,
+    :func:`otmm_qp.reference.solve.solve_reference`; a stored row of an older study that is
+    not achievable and not certified counts as undecided), limit-bound
+    (``reference.touches_position_limit``); without one, by generator (``near_singular`` and
+    ``joint_path``; ``beyond_reach``; limit-bound tasks cannot be told).
     """
     own = [r for r in rows.select(robot=robot) if not is_reference(r)]
     if rows.has_reference:
@@ -85,9 +96,20 @@ def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
                 ],
             ),
             TaskGroup(
-                "beyond-reach motion",
-                "tasks the reference finds unachievable (judged by the graceful criteria)",
-                [r for r in own if not is_achievable(r)],
+                UNACHIEVABLE,
+                "tasks whose certified lower bound exceeds a tolerance (judged by the graceful "
+                "criteria)",
+                [r for r in own if r.get("reference.status") == "unachievable"],
+            ),
+            TaskGroup(
+                UNDECIDED,
+                "tasks no path was found to meet and no bound rules out (judged by the "
+                "graceful criteria)",
+                [
+                    r
+                    for r in own
+                    if not is_achievable(r) and r.get("reference.status") != "unachievable"
+                ],
             ),
             TaskGroup(
                 "limit-bound motion",
@@ -112,6 +134,55 @@ def task_groups(rows: Rows, robot: str) -> list[TaskGroup]:
             [],
         ),
     ]
+
+
+@dataclass(frozen=True)
+class BracketRow:
+    """The reference's bracket over one kind of task.
+
+    Attributes:
+        kind: The kind of task (a :class:`TaskGroup` label, or ``"all tasks"``).
+        tasks: Tasks of that kind with a stored reference.
+        counts: ``reference.status`` counts, in :data:`BRACKET_LABELS` order.
+        median_gap: Median of ``reference.upper − reference.lower`` [tolerances] (NaN: none).
+        p90_gap: Its 90th percentile [tolerances] (NaN: none).
+    """
+
+    kind: str
+    tasks: int
+    counts: tuple[int, ...]
+    median_gap: float
+    p90_gap: float
+
+
+def bracket_summary(rows: Rows, robot: str) -> list[BracketRow]:
+    """Per kind of task of ``robot`` (and all its tasks): labels and the bracket's gap.
+
+    The gap is ``reference.upper − reference.lower`` of each task's reference row; empty
+    without a stored reference.
+    """
+    if not rows.has_reference:
+        return []
+    oracle = {task_of(r): r for r in rows.select(robot=robot) if is_reference(r)}
+    kinds = [(g.label, {task_of(r) for r in g.rows}) for g in task_groups(rows, robot)]
+    kinds.append(("all tasks", set(oracle)))
+    out = []
+    for label, tasks in kinds:
+        chosen = [oracle[t] for t in tasks if t in oracle]
+        if not chosen:
+            continue
+        counts = tuple(sum(r.get("reference.status") == s for r in chosen) for s in BRACKET_LABELS)
+        gaps = np.array(
+            [number(r, "reference.upper") - number(r, "reference.lower") for r in chosen]
+        )
+        gaps = gaps[np.isfinite(gaps)]
+        median, p90 = (
+            (float(np.median(gaps)), float(np.percentile(gaps, 90)))
+            if gaps.size
+            else (math.nan, math.nan)
+        )
+        out.append(BracketRow(label, len(chosen), counts, median, p90))
+    return out
 
 
 def success_flags(selected: list[dict[str, Any]]) -> dict[str, dict[tuple[object, ...], bool]]:

@@ -90,14 +90,23 @@ _CONTROLLER = (
 )
 #: ``reference.*`` columns (the offline reference of the task), in order.
 _REFERENCE = (
-    ("reference.status", _S, "feasible, infeasible or failed"),
-    ("reference.max_error", _F, "the reference's largest position error [m]"),
+    ("reference.status", _S, "achievable, unachievable, undecided or failed"),
+    ("reference.max_error", _F, "the position optimum: smallest max position error found [m]"),
     ("reference.max_orientation_error", _F, "its largest orientation error [rad]"),
     ("reference.max_joint_speed", _F, "its largest joint speed [rad/s]"),
     ("reference.touches_position_limit", _B, "whether its path touches a position limit"),
     ("reference.min_sigma", _F, "smallest σ_min along its path"),
     ("reference.near_singular", _B, "whether its path comes within σ_S of a singularity"),
     ("reference.achievable", _B, "whether the reference meets the tolerances (a certificate)"),
+    ("reference.upper", _F, "merit of the best path within the limits [tolerances]"),
+    ("reference.lower", _F, "certified lower bound of the min-max merit [tolerances]"),
+    ("reference.position_error", _F, "largest position error of the best-merit path [m]"),
+    ("reference.position_lower", _F, "certified lower bound of the max position error [m]"),
+    ("reference.source", _S, "where the best path came from (a start or a controller)"),
+    ("reference.step", _F, "last step of the solve (its convergence test) [tolerances]"),
+    ("reference.kkt_residual", _F, "KKT residual of the solve's end [tolerances]"),
+    ("reference.converged", _B, "whether the solve stopped on its convergence test"),
+    ("reference.iterations", _I, "QPs the solve took"),
     ("reference.seconds", _F, "wall-clock time of the reference solve [s]"),
 )
 _OUTCOME = (

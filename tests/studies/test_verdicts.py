@@ -60,7 +60,8 @@ def test_groups_and_accuracy_of_a_stored_study(small_study: Path) -> None:
     groups = task_groups(rows, "planar2")
     assert [g.label for g in groups] == [
         "singular crossings",
-        "beyond-reach motion",
+        "unachievable (certified)",
+        "undecided",
         "limit-bound motion",
     ]
     for group in groups:

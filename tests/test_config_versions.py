@@ -238,6 +238,10 @@ def test_migrate_cli_prints_what_it_changed(
     assert "experiments.0.controllers.0.backend: damping: 2.5e-05, limit_gain: 0.3" in captured.err
     assert yaml.safe_load(captured.out)["version"] == CURRENT_VERSION
     assert main(["migrate", str(source), "--from", "7"]) == 2
+    assert main(["migrate", str(source), "-o", str(tmp_path)]) == 2  # a folder
+    assert main(["migrate", str(source), "-o", str(tmp_path / "no" / "x.yaml")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith("otmm-qp: error: ") for line in lines)
     assert main(["migrate", str(tmp_path / "missing.yaml")]) == 2
     assert not (tmp_path / "o").exists()
 

@@ -308,7 +308,9 @@ def test_third_party_robot_plugin_runs_with_the_peer_in_a_suite(plugins: None, p
             {"name": "qp", "backend": {"type": "qp", "solver": "daqp", "regularization": DAMPING}},
         ],
     }
-    suite = parse_config({"name": "p", "loop_modes": ["clik"], "experiments": [experiment]})
+    suite = parse_config(
+        {"version": 2, "name": "p", "loop_modes": ["clik"], "experiments": [experiment]}
+    )
     outcome = run_suite(suite, None, progress=None)
     assert outcome.errors == [] and outcome.skipped == []
     ours = outcome.find("third_party_circle", "clik", "qp")

@@ -77,7 +77,8 @@ def peer_entry_points(monkeypatch: pytest.MonkeyPatch) -> None:
 def run(scenario: dict[str, Any], backends: dict[str, dict[str, Any]]) -> dict[str, Any]:
     experiment = dict(scenario)
     experiment["controllers"] = [{"name": name, "backend": spec} for name, spec in backends.items()]
-    suite = parse_config({"name": "peers", "loop_modes": ["clik"], "experiments": [experiment]})
+    data = {"version": 2, "name": "peers", "loop_modes": ["clik"], "experiments": [experiment]}
+    suite = parse_config(data)
     return run_suite(suite, None, progress=None)
 
 

@@ -17,6 +17,7 @@ from otmm_qp.robots.peer_models import (
 )
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
+from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 
@@ -114,14 +115,15 @@ class MinkBackend(QpPeerBackend):
         configuration.update(self._map.to_peer(theta, self._qpos0))
         self._data.set_command(self.physical_velocity(state, xdot), state.weight, self.dt)
         try:
-            velocity = mink.solve_ik(
-                configuration,
-                [self._task],
-                self.dt,
-                self.solver,
-                damping=self.regularization,
-                limits=self._limits,
-            )
+            with sigint_held():  # a C solver's own SIGINT handler (OSQP's) would eat Ctrl-C
+                velocity = mink.solve_ik(
+                    configuration,
+                    [self._task],
+                    self.dt,
+                    self.solver,
+                    damping=self.regularization,
+                    limits=self._limits,
+                )
         except mink.MinkError:
             return BackendOutput(np.zeros(self.robot.nv), Status.INFEASIBLE)
         return BackendOutput(self._map.from_peer_velocity(velocity), Status.OK)

@@ -12,6 +12,7 @@ from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.robots.peer_models import PinocchioPeerModel
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
+from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 
@@ -110,15 +111,16 @@ class PinkBackend(QpPeerBackend):
         configuration.update(self._pinocchio.configuration(self.robot, state.q))
         self._data.set_command(self.physical_velocity(state, xdot), state.weight, self.dt)
         try:
-            velocity = self._solve_ik(
-                configuration,
-                [self._task],
-                self.dt,
-                solver=self.solver,
-                damping=self.regularization,
-                limits=self._limits,
-                safety_break=False,
-            )
+            with sigint_held():  # a C solver's own SIGINT handler (OSQP's) would eat Ctrl-C
+                velocity = self._solve_ik(
+                    configuration,
+                    [self._task],
+                    self.dt,
+                    solver=self.solver,
+                    damping=self.regularization,
+                    limits=self._limits,
+                    safety_break=False,
+                )
         except PinkError:
             return BackendOutput(np.zeros(self.robot.nv), Status.INFEASIBLE)
         return BackendOutput(self._pinocchio.velocity(velocity), Status.OK)

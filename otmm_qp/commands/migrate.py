@@ -51,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     source = str(args.file)
     if not args.file.is_file():
         raise ConfigError(source, "no such file")
+    if args.out is not None:
+        _check_out(args.out)
     migration = migrate(load_yaml(args.file), source, args.from_version)
     if "generators" in migration.data:
         from otmm_qp.studies.spec import parse_study
@@ -58,6 +60,11 @@ def run(args: argparse.Namespace) -> int:
         parse_study(migration.data, f"{source} (migrated)")
     else:
         parse(SuiteConfig, migration.data, f"{source} (migrated)")
+    if args.out is not None:
+        try:
+            write_config(args.out, migration.data)
+        except OSError as error:
+            raise ConfigError("-o", f"cannot write {args.out}: {error.strerror}") from None
     report = sys.stderr if args.out is None else sys.stdout
     print(
         f"otmm-qp: {source}: read as schema {migration.source_version} "
@@ -70,6 +77,19 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         sys.stdout.write(dump_config(migration.data))
     else:
-        write_config(args.out, migration.data)
         print(f"  written: {args.out}", file=report)
     return 0
+
+
+def _check_out(out: Path) -> None:
+    """Refuse an ``-o`` that is a folder or lies in a folder that does not exist.
+
+    Raises:
+        ConfigError: Naming ``-o`` and the path.
+    """
+    from otmm_qp.exceptions import ConfigError
+
+    if out.is_dir():
+        raise ConfigError("-o", f"{out} is a folder; name the file to write")
+    if not out.parent.is_dir():
+        raise ConfigError("-o", f"folder {out.parent} does not exist")

@@ -14,6 +14,7 @@ from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import DIVERGENCE_SPEED, Status, classify, speed_limit_thresholds
+from otmm_qp.trajectories.trajectory import Trajectory
 
 
 class ControllerOutput(NamedTuple):
@@ -94,11 +95,20 @@ class Controller:
         """Joint speed [rad/s] above which a solved step is reported ``diverging``."""
         return self._divergence_speed
 
-    def bind(self, robot: Robot, dt: float) -> None:
-        """Prepare for a run on ``robot`` with period ``dt`` [s]."""
+    def bind(self, robot: Robot, dt: float, trajectory: Trajectory | None = None) -> None:
+        """Prepare for a run on ``robot`` with period ``dt`` [s] along ``trajectory``.
+
+        The trajectory is handed to the backend (:meth:`Backend.attach`); a preview backend
+        refuses one that cannot give its horizon, before any step.
+
+        Raises:
+            PreviewUnavailable: The backend's preview exceeds the trajectory's lookahead.
+        """
         for task_filter in self.filters:
             task_filter.bind(robot, dt)
         self.backend.bind(robot, dt)
+        if trajectory is not None:
+            self.backend.attach(trajectory)
         limits = np.asarray(robot.velocity_limits, dtype=float)
         check = not self.backend.enforces_limits and bool(np.isfinite(limits).any())
         self._speed_thresholds = speed_limit_thresholds(limits) if check else None

@@ -34,6 +34,9 @@ from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.spec import plant_name
 from otmm_qp.studies.task_ids import entry_label, task_id
 
+#: The ``information`` column of the reference rows (the row's backend's
+#: :attr:`~otmm_qp.backends.backend.Backend.information` for every other row).
+OFFLINE_INFORMATION = "offline"
 #: Metrics that measure wall-clock time: they differ between runs and executors.
 TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")
 
@@ -254,6 +257,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         row["duration"] = duration
         if controller == REFERENCE_INDEX:
             oracle = _oracle_row(config, row, robot, weight, task, duration)
+            oracle["information"] = OFFLINE_INFORMATION  # the whole path, solved offline
             reference = task_reference(oracle)
             result.rows.append(oracle)
             continue
@@ -261,6 +265,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             built = build_controller(
                 controllers[controller], f"controllers.{controller}", settings.blow_up_speed
             )
+            row["information"] = built.backend.information  # causal, or preview H s
             stage = build_stage(controllers[controller])
             episode = study_episode(config, robot, task, weight, mode)
             record = run_episode(episode, built, settings, stage)

@@ -116,7 +116,7 @@ class PreviewBackend(BoxQpBackend):
         fine_steps: int = 4,
         coarse_step: float | None = None,
         regularization: float = 1e-4,
-        smoothness: float = 1.0,
+        smoothness: float = 0.01,
         jump: float = 0.0,
         trust_region: float = 0.0,
         solver: str = "daqp",

@@ -12,9 +12,10 @@ weighted Jacobians :math:`\bar J_i = W J(\bar\theta_i)` and residuals :math:`\ba
     \min_v\ &\tfrac12\sum_{i=1}^{K} \frac{h_i}{H\,dt^2}\Big(
         \|\bar J_i(\delta_i - \bar d_i) - \bar r_i\|^2 + \kappa\|\delta_i - \bar d_i\|^2\Big)
       + \tfrac12\mu\sum_{i=1}^{K}\frac{h_i}{H}\|v_i\|^2 \\
-      &+ \tfrac12\rho_0\|v_1 - \dot q_{prev}\|^2
-      + \tfrac12\rho\sum_{i=2}^{K}\frac{\tilde h_i}{H}\Big\|\frac{v_i - v_{i-1}}{\tilde h_i}
-        \,dt\Big\|^2,\qquad \tilde h_i = \tfrac12(h_{i-1} + h_i) \\
+      &+ \tfrac12\rho_0\|v_1 - v_0\|^2
+      + \tfrac12\rho\sum_{i=1}^{K}\frac{\tilde h_i}{H}\Big\|\frac{v_i - v_{i-1}}{\tilde h_i}
+        \,dt\Big\|^2,\qquad \tilde h_i = \tfrac12(h_{i-1} + h_i),
+        \ v_0 = \dot q_{prev},\ h_0 = dt \\
     \text{s.t.}\ &lb \le v_1 \le ub \quad\text{(the step's box of the project's limits)},\\
       &-\dot q_{max} \le v_i \le \dot q_{max},\quad
       \theta_{min} - \theta_0 \le \delta_i \le \theta_{max} - \theta_0,\quad
@@ -24,9 +25,10 @@ The task term is the time average of the squared tracking error over the horizon
 of one step's velocity (÷ dt²); κ is a trust region keeping the plan near the nominal where
 the linearisation holds (it keeps the Hessian well conditioned where ``J̄ᵀJ̄`` loses rank,
 as the offline reference's Levenberg–Marquardt term does); ρ weights the second differences
-of the knot positions (the plan's accelerations) and ρ₀ the one-step jump of the executed
-velocity. The task error is soft — its slack is the residual itself — and every limit hard.
-With ``K = 1`` (``H = dt``) and ρ₀ = κ = 0 the QP is the one-step QP
+of the knot positions (the plan's accelerations, the previous step's velocity ``v_0`` included,
+so consecutive plans agree) and ρ₀ adds weight on the one-step jump of the executed velocity.
+The task error is soft — its slack is the residual itself — and every limit hard.
+With ``K = 1`` (``H = dt``) and ρ = ρ₀ = κ = 0 the QP is the one-step QP
 :math:`\min \tfrac12\|J_w v - \bar r_1/dt\|^2 + \tfrac12\mu\|v\|^2` in the box.
 
 Assembly is structured: with :math:`G_i = \frac{h_i}{H dt^2}(\bar J_i^\top\bar J_i +
@@ -67,7 +69,7 @@ class PreviewWeights:
     """
 
     regularization: float = 1e-4
-    smoothness: float = 1.0
+    smoothness: float = 0.01
     jump: float = 0.0
     trust_region: float = 0.0
 
@@ -147,9 +149,10 @@ class PreviewProblem:
         """The regularisation and smoothness blocks, ``(K·nv, K·nv)`` (module docstring)."""
         count, nv, w = h.shape[0], self.nv, self.weights
         diagonal = w.regularization * h / horizon
-        # Velocity-change weights: w_1 = ρ₀ (against q̇_prev), w_i = ρ dt²/(H h̃_i), i ≥ 2.
+        # Velocity-change weights: w_i = ρ dt²/(H h̃_i) (h̃_1 = dt: q̇_prev is segment 0 of
+        # length dt), plus ρ₀ on the first.
         change = np.empty(count + 1)
-        change[0] = w.jump
+        change[0] = w.smoothness * dt / horizon + w.jump
         change[1:count] = w.smoothness * dt * dt / (horizon * 0.5 * (h[:-1] + h[1:]))
         change[count] = 0.0
         diagonal = diagonal + change[:count] + change[1:]

@@ -9,13 +9,16 @@ One concept, one idea per file:
 * :mod:`.targets` — what each knot misses: the desired path (preview) or the held command
   (causal);
 * :mod:`.backend` — :class:`PreviewBackend` (entry point ``preview``) and
-  :class:`CausalPreviewBackend` (``preview_causal``).
+  :class:`CausalPreviewBackend` (``preview_causal``);
+* :mod:`.two_rate` — :class:`TwoRatePreviewBackend` (``preview_two_rate``): the preview QP
+  every ``N`` steps, the one-step ``qp`` backend tracking its plan in between.
 """
 
 from .backend import CausalPreviewBackend, PreviewBackend, PreviewStep
 from .formulation import PreviewProblem, PreviewWeights
 from .knots import KnotGrid
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
+from .two_rate import TwoRatePreviewBackend
 
 __all__ = [
     "CausalPreviewBackend",
@@ -27,4 +30,5 @@ __all__ = [
     "PreviewWeights",
     "Targets",
     "TrajectoryTargets",
+    "TwoRatePreviewBackend",
 ]

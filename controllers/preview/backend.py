@@ -193,6 +193,10 @@ class PreviewBackend(BoxQpBackend):
         if hasattr(self, "_plan"):
             self._plan[:] = 0.0
 
+    def seek(self, t: float) -> None:
+        """Set the clock: the next solve is the step at ``t`` [s] (a replay that skips steps)."""
+        self._k = int(round(t / self.dt))
+
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:

@@ -32,6 +32,9 @@ LIBRARIES = (
 DEFAULT_TARGET = 0.5
 EVERY_STEP_TARGET = 0.6
 PINV_TARGET = 0.35
+#: Per-step targets of the preview pipelines [µs] (issue 28): median and p99.
+PREVIEW_MEDIAN_US = 1000.0
+PREVIEW_P99_US = 3000.0
 #: Consecutive states a pipeline runs before the next one takes over (see time_pipelines).
 BLOCK = 25
 
@@ -118,7 +121,8 @@ def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     * each default ``otmm+qp (solver)`` ≤ 0.5 × pink (daqp);
     * ``otmm+qp`` with the QP solved every step (fast path off) ≤ 0.6 × pink (daqp);
     * ``otmm+pinv`` ≤ 0.35 × pink (daqp);
-    * each ``qp`` pipeline ≤ pink with the same QP solver.
+    * each ``qp`` pipeline ≤ pink with the same QP solver;
+    * each ``preview`` pipeline: median ≤ 1 ms and p99 ≤ 3 ms (absolute, issue 28).
     """
     median = {row["pipeline"]: row["median_us"] for row in rows}
     reference = median.get(REFERENCE)
@@ -134,6 +138,11 @@ def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             _check(f"otmm+pinv ≤ {PINV_TARGET} × {REFERENCE}", median["otmm+pinv"],
                    PINV_TARGET * reference)
         )  # fmt: skip
+    for row in rows:
+        if row["pipeline"].startswith("preview"):
+            name = row["pipeline"]
+            checks.append(_check(f"{name} median ≤ 1 ms", row["median_us"], PREVIEW_MEDIAN_US))
+            checks.append(_check(f"{name} p99 ≤ 3 ms", row["p99_us"], PREVIEW_P99_US))
     for name, value in median.items():
         solver = qp_label_solver(name)
         if solver is None:

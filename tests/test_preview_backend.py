@@ -22,7 +22,12 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.held_targets import HeldTargetsTrajectory
-from otmm_qp_controllers.preview import CausalPreviewBackend, KnotGrid, PreviewBackend
+from otmm_qp_controllers.preview import (
+    CausalPreviewBackend,
+    KnotGrid,
+    PreviewBackend,
+    TwoRatePreviewBackend,
+)
 from otmm_qp_controllers.qp import QpBackend
 from otmm_qp_controllers.qp.solvers import Solution
 
@@ -331,3 +336,80 @@ def test_bad_input_is_one_line_exit_2(
     assert err.startswith("otmm-qp: error: ") and "Traceback" not in err
     assert re.search(pattern, err), err
     assert not (tmp_path / "out").exists()
+
+
+# --- the two-rate scheme ---------------------------------------------------------------------
+
+
+def test_two_rate_every_step_is_the_preview_backend() -> None:
+    robot = _arm()
+    q0 = np.array([0.3, 0.9, 0.6])
+    start = robot.forward(q0)
+    trajectory = CircleTrajectory(start, centre=start - [0.3, 0.0], radius=0.3, period=2.0)
+    one, _ = _run(robot, trajectory, q0, PreviewBackend(horizon=0.4), duration=0.5)
+    two, _ = _run(robot, trajectory, q0, TwoRatePreviewBackend(every=1, horizon=0.4), duration=0.5)
+    np.testing.assert_allclose(two.qdot, one.qdot, atol=1e-9)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), every=st.integers(2, 6), speed=st.floats(0.3, 2.0))
+def test_two_rate_keeps_every_limit_and_tracks(seed: int, every: int, speed: float) -> None:
+    rng = np.random.default_rng(seed)
+    q0 = rng.uniform(-1.0, 1.0, size=3)
+    room = rng.uniform(0.05, 0.5, size=(2, 3))
+    limits = [[q - a, q + b] for q, a, b in zip(q0, room[0], room[1], strict=True)]
+    robot = PlanarArm([1.0, 0.8, 0.5], limits=limits, velocity_limits=[speed] * 3)
+    start = robot.forward(q0)
+    trajectory = CircleTrajectory(start, centre=start - [0.2, 0.0], radius=0.2, period=1.5)
+    backend = TwoRatePreviewBackend(every=every, horizon=0.3, infeasible_policy="hold")
+    result, metrics = _run(robot, trajectory, q0, backend, duration=0.6)
+    assert result.error_message is None
+    assert metrics["position_violations"] == 0 and metrics["velocity_violations"] == 0
+
+
+def test_two_rate_tracks_between_preview_solves() -> None:
+    robot = _arm()
+    q0 = np.array([0.3, 0.9, 0.6])
+    start = robot.forward(q0)
+    trajectory = CircleTrajectory(start, centre=start - [0.3, 0.0], radius=0.3, period=2.0)
+    _, metrics = _run(robot, trajectory, q0, TwoRatePreviewBackend(every=5, horizon=0.5), 2.0)
+    # [m] on a 0.3 m circle in 2 s (the largest error is the start from rest)
+    assert metrics["rms_error"] < 1e-3 and metrics["max_error"] < 1e-2
+
+
+def test_two_rate_refuses_a_bad_rate() -> None:
+    with pytest.raises(ConfigError, match="every"):
+        registry.create(registry.BACKENDS, "preview_two_rate", {"every": 0}, "backend")
+
+
+# --- the study's information column ---------------------------------------------------------
+
+
+def test_study_rows_record_their_information_class(tmp_path: Path) -> None:
+    from otmm_qp.studies.storage import read_episodes
+
+    study = {
+        "name": "preview-tiny",
+        "seed": 3,
+        "dt": 0.05,
+        "duration": {"extra": 0.1},
+        "reference": {"enabled": False},
+        "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
+        "generators": [{"type": "near_singular", "count": 1, "duration": [0.5, 0.6]}],
+        "controllers": [
+            {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
+            {"name": "preview", "backend": {"type": "preview", "horizon": 0.5}},
+            {"name": "causal", "backend": {"type": "preview_causal", "horizon": 0.5}},
+        ],
+    }
+    import yaml
+
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(study))
+    out = tmp_path / "out"
+    args = ["study", str(path), "--out", str(out), "--workers", "1", "--quiet", "--no-report"]
+    assert main(args) == 0
+    table = read_episodes(out)
+    assert table is not None
+    classes = {row["controller"]: row["information"] for row in table.to_pylist()}
+    assert classes == {"dls": "causal", "preview": "preview 0.5 s", "causal": "causal"}

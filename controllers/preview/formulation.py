@@ -189,13 +189,15 @@ class PreviewProblem:
         problem, count, nv = self.problem, self.grid.count, self.nv
         h, c = self.grid.steps, self._task_weight
         kappa = self.weights.trust_region
-        gram = np.einsum("kni,knj->kij", jacobians, jacobians)  # (K, nv, nv)
+        transposed = jacobians.transpose(0, 2, 1)  # (K, nv, n)
+        gram = np.matmul(transposed, jacobians)  # (K, nv, nv); batched matmul beats einsum
         if kappa > 0.0:
             gram.reshape(count, -1)[:, :: nv + 1] += kappa
         gram *= c[:, None, None]
         # g_i = c_i J̄_iᵀ r̄_i + G_i d̄_i, then suffix sums over i.
-        pull = np.einsum("kni,kn->ki", jacobians, residuals) * c[:, None]
-        pull += np.einsum("kij,kj->ki", gram, nominal)
+        pull = np.matmul(transposed, residuals[:, :, None])[:, :, 0]
+        pull *= c[:, None]
+        pull += np.matmul(gram, nominal[:, :, None])[:, :, 0]
         suffix = np.cumsum(gram[::-1], axis=0)[::-1]
         pull_suffix = np.cumsum(pull[::-1], axis=0)[::-1]
         blocks = self._blocks

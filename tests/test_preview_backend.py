@@ -413,3 +413,14 @@ def test_study_rows_record_their_information_class(tmp_path: Path) -> None:
     assert table is not None
     classes = {row["controller"]: row["information"] for row in table.to_pylist()}
     assert classes == {"dls": "causal", "preview": "preview 0.5 s", "causal": "causal"}
+
+
+def test_the_shipped_preview_study_is_valid() -> None:
+    from otmm_qp.studies.spec import load_study, plan_study
+
+    path = Path(__file__).parent.parent / "configs" / "studies" / "preview.yaml"
+    plan = plan_study(load_study(path), "preview.yaml")
+    names = {controller.name for controller in plan.controllers}
+    horizons = {f"preview[horizon={h:g}]" for h in (0.25, 0.5, 1, 2, 4)}
+    assert horizons | {"preview_causal", "preview-smooth[smoothness=0.001]"} <= names
+    assert len(plan.episodes) == 3 * 80 * (16 + 1)  # 3 robots x 80 tasks x (16 rows + oracle)

@@ -203,6 +203,31 @@ def test_tracks_a_reachable_path_and_preview_beats_its_causal_counterpart() -> N
     assert preview["rms_error"] < causal["rms_error"]
 
 
+def test_the_fast_path_is_the_qp_optimum() -> None:
+    """The unconstrained minimiser, when kept, is what the solver finds (and it is taken)."""
+    robot = _arm()
+    q0 = np.array([0.3, 0.9, 0.6])
+    start = robot.forward(q0)
+    trajectory = CircleTrajectory(start, centre=start - [0.3, 0.0], radius=0.3, period=2.0)
+    fast = PreviewBackend(horizon=0.5)
+    slow = PreviewBackend(horizon=0.5, fast_path=False)
+    for backend in (fast, slow):
+        backend.bind(robot, DT)
+        backend.attach(trajectory)
+        backend.reset()
+    q, previous, taken = q0, np.zeros(3), 0
+    for _ in range(25):
+        state = KinematicState.compute(robot, q)
+        ours, theirs = (
+            fast.solve(state, np.zeros(2), previous),
+            slow.solve(state, np.zeros(2), previous),
+        )
+        np.testing.assert_allclose(ours.qdot, theirs.qdot, atol=1e-7)
+        taken += ours.details.solution.detail.startswith("unconstrained")
+        q, previous = q + DT * ours.qdot, ours.qdot
+    assert taken > 0
+
+
 def test_information_classes() -> None:
     assert PreviewBackend(horizon=0.5).information == "preview 0.5 s"
     assert CausalPreviewBackend(horizon=0.5).information == "causal"
@@ -219,7 +244,7 @@ def test_a_failed_solve_falls_back_and_is_counted(
     robot = _arm()
     q0 = np.array([0.3, 0.9, 0.6])
     trajectory = CircleTrajectory(robot.forward(q0), centre=[1.0, 0.6], radius=0.3, period=2.0)
-    backend = PreviewBackend(horizon=0.2, infeasible_policy=policy)
+    backend = PreviewBackend(horizon=0.2, infeasible_policy=policy, fast_path=False)
     calls = {"n": 0}
     real = type(backend.session).solve
 
@@ -241,7 +266,7 @@ def test_a_failed_solve_under_raise_stops_the_run_with_one_line(
     robot = _arm()
     q0 = np.array([0.3, 0.9, 0.6])
     trajectory = CircleTrajectory(robot.forward(q0), centre=[1.0, 0.6], radius=0.3, period=2.0)
-    backend = PreviewBackend(horizon=0.2)
+    backend = PreviewBackend(horizon=0.2, fast_path=False)
     monkeypatch.setattr(
         type(backend.session), "solve", lambda session: Solution(None, False, "forced")
     )

@@ -30,7 +30,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.trajectories.preview import check_preview
 from otmm_qp.trajectories.trajectory import Trajectory
-from otmm_qp.validation import Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
 
 from ..qp.box_backend import SOLVER, SOLVER_TOL, BoxQpBackend
 from ..qp.formulation import clip_into_box
@@ -85,6 +85,8 @@ class PreviewBackend(BoxQpBackend):
             acceleration limit when one is listed. None: velocity and position (gain 0.5).
         infeasible_policy: ``raise``, ``hold`` or ``dls`` (the nominal's first velocity
             clipped into the relaxed box), as the ``qp`` backend.
+        fast_path: Skip the solver when the unconstrained minimiser (one Cholesky) meets every
+            constraint — then it is the QP's optimum.
 
     Raises:
         ParameterError: A parameter out of range (at construction), or a knot layout that
@@ -107,6 +109,7 @@ class PreviewBackend(BoxQpBackend):
         "solver": SOLVER,
         "limits": [LIMITS, None],
         "infeasible_policy": OneOf(*policies),
+        "fast_path": Boolean(),
     }
 
     def __init__(
@@ -122,9 +125,11 @@ class PreviewBackend(BoxQpBackend):
         solver: str = "daqp",
         limits: Sequence[LimitSpec] | None = None,
         infeasible_policy: InfeasiblePolicy = "raise",
+        fast_path: bool = True,
     ) -> None:
         check_params(self, locals())
         super().__init__(solver, make_limits(limits), infeasible_policy)
+        self.fast_path = bool(fast_path)
         self.horizon = float(horizon)
         self.knots = int(knots)
         self.fine_steps = int(fine_steps)
@@ -232,8 +237,7 @@ class PreviewBackend(BoxQpBackend):
             self._jacobians, self._residuals, nominal, qdot_prev, self.box.bounds,
             self._speed, room,
         )  # fmt: skip
-        self.session.load(problem)
-        solution = self.session.solve()
+        solution = self._solve(problem)
         settled = None if solution.x is None else clip_into_box(
             solution.x[: self.robot.nv], self.box.bounds, SOLVER_TOL
         )  # fmt: skip
@@ -248,6 +252,15 @@ class PreviewBackend(BoxQpBackend):
         plan[0] = qdot
         status = Status.BOUNDED if active else Status.OK
         return self._output(qdot, status, problem, solution, self._plan, taus)
+
+    def _solve(self, problem: QpProblem) -> Solution:
+        """The fast path (the unconstrained minimiser, when feasible), else the session."""
+        if self.fast_path:
+            x = self._qp.unconstrained()
+            if x is not None:
+                return Solution(x, True, "unconstrained minimiser feasible")
+        self.session.load(problem)
+        return self.session.solve()
 
     def _linearise(
         self, state: KinematicState, theta: FloatArray, nominal: FloatArray

@@ -43,6 +43,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray
@@ -220,3 +221,27 @@ class PreviewProblem:
             problem.l[rows] = np.tile(room[0], count - 1)
             problem.u[rows] = np.tile(room[1], count - 1)
         return problem
+
+    def unconstrained(self) -> FloatArray | None:
+        r"""The minimiser of the built QP's cost without constraints, when it meets them all.
+
+        :math:`x^* = -P^{-1}q` by one LAPACK Cholesky (``dpotrf``/``dpotrs``); returned only
+        when :math:`lb \le x^* \le ub` and :math:`l \le Cx^* \le u` hold, where convexity makes
+        it the QP's optimum (the fast path: no solver call). None otherwise (or when the
+        factorisation fails).
+        """
+        problem = self.problem
+        factor, info = lapack.dpotrf(problem.P, lower=False, clean=False, overwrite_a=False)
+        if info != 0:
+            return None
+        x, info = lapack.dpotrs(factor, problem.q, lower=False)
+        if info != 0:
+            return None
+        np.negative(x, out=x)
+        if not (np.all(x >= problem.lb) and np.all(x <= problem.ub)):
+            return None  # also for NaN
+        if problem.C.shape[0]:
+            rows = problem.C.dot(x)
+            if not (np.all(rows >= problem.l) and np.all(rows <= problem.u)):
+                return None
+        return np.asarray(x, dtype=float)

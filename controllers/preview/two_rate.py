@@ -41,7 +41,7 @@ class TwoRatePreviewBackend(PreviewBackend):
         tracker_regularization: μ of the tracking ``qp`` backend (> 0).
         limits: The limits of both QPs (None: velocity and position, gain 0.5).
         horizon, knots, fine_steps, coarse_step, regularization, smoothness, jump,
-        trust_region, solver, infeasible_policy: As :class:`PreviewBackend`.
+        trust_region, solver, infeasible_policy, fast_path: As :class:`PreviewBackend`.
     """
 
     name = "preview_two_rate"
@@ -66,11 +66,12 @@ class TwoRatePreviewBackend(PreviewBackend):
         solver: str = "daqp",
         limits: Sequence[LimitSpec] | None = None,
         infeasible_policy: InfeasiblePolicy = "raise",
+        fast_path: bool = True,
     ) -> None:
         check_params(self, locals())
         super().__init__(
             horizon, knots, fine_steps, coarse_step, regularization, smoothness, jump,
-            trust_region, solver, limits, infeasible_policy,
+            trust_region, solver, limits, infeasible_policy, fast_path,
         )  # fmt: skip
         self.every = int(every)
         self.tracker = QpBackend(

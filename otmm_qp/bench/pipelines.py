@@ -48,7 +48,11 @@ PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("preview (H = 0.5 s)", "preview", {"horizon": 0.5}),
     ("preview (H = 2 s)", "preview", {"horizon": 2.0}),
     ("preview (H = 2 s, 8 knots)", "preview", {"horizon": 2.0, "knots": 8}),
-    ("preview two-rate (H = 2 s, QP at 50 Hz)", "preview_two_rate", {"horizon": 2.0, "every": 2}),
+    (
+        "preview two-rate (H = 2 s, preview QP every 10 steps)",
+        "preview_two_rate",
+        {"horizon": 2.0, "every": 10},
+    ),
 )
 
 

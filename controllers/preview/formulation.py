@@ -70,9 +70,9 @@ class PreviewWeights:
     """
 
     regularization: float = 1e-4
-    smoothness: float = 0.01
+    smoothness: float = 0.001
     jump: float = 0.0
-    trust_region: float = 0.0
+    trust_region: float = 1e-3
 
     def __post_init__(self) -> None:
         """Validate the weights."""

@@ -43,15 +43,20 @@ OUR_SOLVERS: dict[str, tuple[str, str]] = {
 PERSISTENT_DAQP = "daqp"
 EVERY_STEP = "QP every step"
 #: The preview pipelines (Panda only): label, backend, parameters. Each replays the recorded
-#: states at their recorded times along the recording run's trajectory.
+#: states at their recorded times along the recording run's trajectory; ``hold`` keeps a
+#: run-time infeasible QP from stopping the bench (it is timed like any step).
 PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
-    ("preview (H = 0.5 s)", "preview", {"horizon": 0.5}),
-    ("preview (H = 2 s)", "preview", {"horizon": 2.0}),
-    ("preview (H = 2 s, 8 knots)", "preview", {"horizon": 2.0, "knots": 8}),
+    ("preview (H = 0.5 s)", "preview", {"horizon": 0.5, "infeasible_policy": "hold"}),
+    ("preview (H = 2 s)", "preview", {"horizon": 2.0, "infeasible_policy": "hold"}),
+    (
+        "preview (H = 2 s, 8 knots)",
+        "preview",
+        {"horizon": 2.0, "knots": 8, "infeasible_policy": "hold"},
+    ),
     (
         "preview two-rate (H = 2 s, preview QP every 10 steps)",
         "preview_two_rate",
-        {"horizon": 2.0, "every": 10},
+        {"horizon": 2.0, "every": 10, "infeasible_policy": "hold"},
     ),
 )
 

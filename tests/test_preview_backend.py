@@ -416,7 +416,9 @@ def test_two_rate_refuses_a_bad_rate() -> None:
 # --- the study's information column ---------------------------------------------------------
 
 
-def test_study_rows_record_their_information_class(tmp_path: Path) -> None:
+def test_study_rows_record_their_information_class(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from otmm_qp.studies.storage import read_episodes
 
     study = {
@@ -424,7 +426,6 @@ def test_study_rows_record_their_information_class(tmp_path: Path) -> None:
         "seed": 3,
         "dt": 0.05,
         "duration": {"extra": 0.1},
-        "reference": {"enabled": False},
         "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
         "generators": [{"type": "near_singular", "count": 1, "duration": [0.5, 0.6]}],
         "controllers": [
@@ -443,7 +444,17 @@ def test_study_rows_record_their_information_class(tmp_path: Path) -> None:
     table = read_episodes(out)
     assert table is not None
     classes = {row["controller"]: row["information"] for row in table.to_pylist()}
-    assert classes == {"dls": "causal", "preview": "preview 0.5 s", "causal": "causal"}
+    assert classes == {
+        "dls": "causal",
+        "preview": "preview 0.5 s",
+        "causal": "causal",
+        "oracle": "offline",
+    }
+    # The README's verdict command on such a folder (its reduced run).
+    from otmm_qp.studies.group_verdict import main as verdict
+
+    assert verdict([str(out), "--ours", "preview", "--kinds"]) == 0
+    assert "`preview`" in capsys.readouterr().out
 
 
 def test_the_shipped_preview_study_is_valid() -> None:

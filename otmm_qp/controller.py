@@ -52,7 +52,8 @@ class Controller:
             column); default its class-level ``name``.
 
     Raises:
-        ParameterError: ``divergence_speed`` not > 0, or ``filter_names`` not one per filter.
+        ParameterError: ``divergence_speed`` not > 0, ``filter_names`` not one per filter, or
+            filters in front of a backend that reads a preview (it never reads the command).
     """
 
     def __init__(
@@ -76,6 +77,13 @@ class Controller:
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
+        if self.filters and backend.preview_horizon is not None:
+            raise ParameterError(
+                "filters",
+                f"backend {backend.name!r} reads the desired path ahead, not the filtered "
+                "command, so filters would do nothing; remove them (or use its causal "
+                "counterpart, e.g. preview_causal)",
+            )
         names = tuple(f.name for f in self.filters) if filter_names is None else tuple(filter_names)
         if len(names) != len(self.filters):
             raise ParameterError(

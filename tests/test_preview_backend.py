@@ -318,6 +318,28 @@ def test_a_causal_trajectory_is_refused_before_any_step() -> None:
     assert result.error_message is None
 
 
+class _KnownAhead(CircleTrajectory):
+    lookahead = 0.5
+
+
+def test_a_trajectory_known_less_far_ahead_than_the_horizon_is_refused() -> None:
+    robot = _arm()
+    q0 = np.array([0.3, 0.9, 0.6])
+    start = robot.forward(q0)
+    trajectory = _KnownAhead(start, centre=start - [0.3, 0.0], radius=0.3, period=2.0)
+    PreviewBackend(horizon=0.5).attach(trajectory)  # exactly as far: accepted
+    with pytest.raises(PreviewUnavailable, match="known 0.5 s ahead") as caught:
+        PreviewBackend(horizon=0.6).attach(trajectory)
+    assert caught.value.field == "horizon" and "\n" not in str(caught.value)
+
+
+def test_filters_in_front_of_a_preview_backend_are_refused() -> None:
+    otmm = registry.create(registry.FILTERS, "otmm", {}, "filters.0")
+    with pytest.raises(ParameterError, match="filters: backend 'preview' reads the desired path"):
+        Controller("p", [otmm], PreviewBackend())
+    Controller("c", [otmm], CausalPreviewBackend())  # the causal counterpart reads the command
+
+
 RUN = """
 name: preview-bad
 dt: 0.02
@@ -344,6 +366,7 @@ CIRCLE = "{type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}"
         (CIRCLE, "{type: preview, horizon: 1.0, coarse_step: 0.1}", r"does not divide"),
         (CIRCLE, "{type: preview, horizon: 1.0, coarse_step: 0.03}", r"not a multiple of dt"),
         (CIRCLE, "{type: preview, horizon: 1.0, knots: 3}", r"knots: 3 is below"),
+        (CIRCLE, "{type: preview}\n        filters: [{type: otmm}]", r"filters: backend 'preview'"),
         (
             "{type: held_targets, targets: [[1.2, 0.5]], hold: 1.0}",
             "{type: preview, horizon: 0.5}",

@@ -21,6 +21,7 @@ from otmm_qp.status import (
     quiet_speed_squared,
     speed_limit_thresholds,
 )
+from otmm_qp.trajectories.trajectory import Trajectory
 
 
 class ControllerOutput(NamedTuple):
@@ -58,7 +59,8 @@ class Controller:
             column); default its class-level ``name``.
 
     Raises:
-        ParameterError: ``divergence_speed`` not > 0, or ``filter_names`` not one per filter.
+        ParameterError: ``divergence_speed`` not > 0, ``filter_names`` not one per filter, or
+            filters in front of a backend that reads a preview (it never reads the command).
     """
 
     def __init__(
@@ -82,6 +84,13 @@ class Controller:
         self.name = name
         self.filters = tuple(filters)
         self.backend = backend
+        if self.filters and backend.preview_horizon is not None:
+            raise ParameterError(
+                "filters",
+                f"backend {backend.name!r} reads the desired path ahead, not the filtered "
+                "command, so filters would do nothing; remove them (or use its causal "
+                "counterpart, e.g. preview_causal)",
+            )
         names = tuple(f.name for f in self.filters) if filter_names is None else tuple(filter_names)
         if len(names) != len(self.filters):
             raise ParameterError(
@@ -103,11 +112,20 @@ class Controller:
         """Joint speed [rad/s] above which a solved step is reported ``diverging``."""
         return self._divergence_speed
 
-    def bind(self, robot: Robot, dt: float) -> None:
-        """Prepare for a run on ``robot`` with period ``dt`` [s]."""
+    def bind(self, robot: Robot, dt: float, trajectory: Trajectory | None = None) -> None:
+        """Prepare for a run on ``robot`` with period ``dt`` [s] along ``trajectory``.
+
+        The trajectory is handed to the backend (:meth:`Backend.attach`); a preview backend
+        refuses one that cannot give its horizon, before any step.
+
+        Raises:
+            PreviewUnavailable: The backend's preview exceeds the trajectory's lookahead.
+        """
         for task_filter in self.filters:
             task_filter.bind(robot, dt)
         self.backend.bind(robot, dt)
+        if trajectory is not None:
+            self.backend.attach(trajectory)
         limits = np.asarray(robot.velocity_limits, dtype=float)
         check = not self.backend.enforces_limits and bool(np.isfinite(limits).any())
         self._speed_thresholds = speed_limit_thresholds(limits) if check else None

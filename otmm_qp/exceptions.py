@@ -159,6 +159,27 @@ class UnreachableTrajectory(ConfigError):
     """The desired trajectory leaves the arm's workspace (raised by the reachability check)."""
 
 
+class PreviewUnavailable(ConfigError):
+    """A controller needs ``x_d(t + τ)`` further ahead than the trajectory can give it.
+
+    Attributes:
+        horizon: The preview the controller needs [s].
+        lookahead: How far ahead the trajectory is known [s] (0: causal).
+    """
+
+    def __init__(self, field: str, trajectory: str, horizon: float, lookahead: float) -> None:
+        self.horizon = horizon
+        self.lookahead = lookahead
+        known = (
+            "causal (only x_d(t) is known)" if lookahead <= 0.0 else f"known {lookahead:g} s ahead"
+        )
+        super().__init__(
+            field,
+            f"needs the desired path {horizon:g} s ahead, but trajectory {trajectory!r} is "
+            f"{known}; shorten the horizon or use the causal counterpart preview_causal",
+        )
+
+
 class OutputPathError(OtmmError):
     """An output path is unusable (outside the results folder, not writable, already used).
 

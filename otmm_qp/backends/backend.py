@@ -11,6 +11,8 @@ from otmm_qp.exceptions import ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
+from otmm_qp.trajectories.preview import information_class
+from otmm_qp.trajectories.trajectory import Trajectory
 
 #: Singular values below ``RCOND·σ_max`` count as zero: the one rank cutoff of every backend.
 RCOND: Final = 1e-10
@@ -104,10 +106,31 @@ class Backend(abc.ABC):
     robot: Robot
     dt: float
 
+    @property
+    def preview_horizon(self) -> float | None:
+        """The preview [s] of the desired path the backend reads each step, or None: causal.
+
+        A causal backend sees only the present command ``ẋ_w``; a preview backend reads
+        ``x_d(t + τ)`` for ``τ ≤ H`` (:mod:`otmm_qp.trajectories.preview`).
+        """
+        return None
+
+    @property
+    def information(self) -> str:
+        """The information class of the backend: ``causal`` or ``preview H s``."""
+        return information_class(self.preview_horizon)
+
     def bind(self, robot: Robot, dt: float) -> None:
         """Attach the robot and the control period ``dt`` [s]; called once per run."""
         self.robot = robot
         self.dt = dt
+
+    def attach(self, trajectory: Trajectory) -> None:  # noqa: B027 - optional hook
+        """Hand over the run's desired motion (after :meth:`bind`; read by preview backends).
+
+        A backend with a :attr:`preview_horizon` checks here, before any step, that the
+        trajectory can give it (:func:`~otmm_qp.trajectories.preview.check_preview`).
+        """
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget warm starts and per-run state (called at the start of each run)."""

@@ -46,6 +46,23 @@ OUR_SOLVERS: dict[str, tuple[str, str]] = {
 #: The solver of the pipeline timed with the fast path off (its persistent session).
 PERSISTENT_DAQP = "daqp"
 EVERY_STEP = "QP every step"
+#: The preview pipelines (Panda only): label, backend, parameters. Each replays the recorded
+#: states at their recorded times along the recording run's trajectory; ``hold`` keeps a
+#: run-time infeasible QP from stopping the bench (it is timed like any step).
+PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("preview (H = 0.5 s)", "preview", {"horizon": 0.5, "infeasible_policy": "hold"}),
+    ("preview (H = 2 s)", "preview", {"horizon": 2.0, "infeasible_policy": "hold"}),
+    (
+        "preview (H = 2 s, 8 knots)",
+        "preview",
+        {"horizon": 2.0, "knots": 8, "infeasible_policy": "hold"},
+    ),
+    (
+        "preview two-rate (H = 2 s, preview QP every 10 steps)",
+        "preview_two_rate",
+        {"horizon": 2.0, "every": 10, "infeasible_policy": "hold"},
+    ),
+)
 
 
 @dataclass(frozen=True)
@@ -108,6 +125,8 @@ def pipeline_specs(full: bool) -> list[PipelineSpec]:
         for solver in PEER_SOLVERS if full else ("daqp",):
             specs.append(PipelineSpec(f"{peer} ({solver})", peer, {"solver": solver}, peer=True))
     specs.append(PipelineSpec("drake (DiffIK)", "drake", {}, peer=True))
+    if full:
+        specs += [PipelineSpec(label, backend, params) for label, backend, params in PREVIEWS]
     return specs
 
 
@@ -125,8 +144,17 @@ def quiet_logs() -> Iterator[None]:
 
 def _controller_step(scenario: Scenario, controller: Controller) -> StepFunction:
     robot, qs, xdots, prevs = scenario.robot, scenario.q, scenario.xdot, scenario.qdot_prev
-    controller.bind(robot, DT)
+    controller.bind(robot, DT, scenario.trajectory)
     compute, step = KinematicState.compute, controller.step
+    seek = getattr(controller.backend, "seek", None)  # a preview backend's clock
+    if seek is not None and scenario.times is not None:
+        times = scenario.times.tolist()
+
+        def replay(k: int) -> None:
+            seek(times[k])
+            step(compute(robot, qs[k]), xdots[k], prevs[k])
+
+        return replay
 
     def run(k: int) -> None:
         step(compute(robot, qs[k]), xdots[k], prevs[k])

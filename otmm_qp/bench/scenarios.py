@@ -44,6 +44,8 @@ class Scenario:
         qdot_prev: Previous joint velocity of the generating run [rad/s], shape ``(N, nv)``.
         bounded_fraction: Fraction of the recording run's steps with a joint bound active.
         description: One line on the trajectory.
+        trajectory: The recording run's desired motion (what a preview backend reads).
+        times: Time [s] of each replayed state, shape ``(N,)``.
     """
 
     name: str
@@ -53,6 +55,8 @@ class Scenario:
     qdot_prev: FloatArray
     bounded_fraction: float
     description: str = ""
+    trajectory: Trajectory | None = None
+    times: FloatArray | None = None
 
     @property
     def steps(self) -> int:
@@ -79,6 +83,7 @@ def record(
     total = max(1, int(round(duration / DT)))
     picks = set(np.unique(np.linspace(0, total - 1, steps).round().astype(int)).tolist())
     kept: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+    times: list[float] = []
 
     def keep(
         k: int,
@@ -89,6 +94,7 @@ def record(
     ) -> None:
         if k in picks:
             kept.append((state.q.copy(), command.copy(), qdot_prev.copy()))
+            times.append(k * DT)
 
     controller = otmm_controller("otmm+qp", "qp", {"solver": "daqp"})
     observer: Callable[..., None] = keep
@@ -96,7 +102,7 @@ def record(
     result = simulate(episode, controller, on_step=observer)
     q, xdot, qdot_prev = (np.array([row[i] for row in kept]) for i in range(3))
     bounded = float(np.mean(result.status == "bounded")) if result.steps else 0.0
-    return Scenario(name, robot, q, xdot, qdot_prev, bounded)
+    return Scenario(name, robot, q, xdot, qdot_prev, bounded, "", trajectory, np.array(times))
 
 
 def panda_scenario(steps: int) -> Scenario:

@@ -38,6 +38,9 @@ PINV_TARGET = 0.30
 PINV_FLOOR_TARGET = 4.0
 #: The ``otmm+qp`` pipeline held to :data:`DAQP_TARGET` (the others to DEFAULT_TARGET).
 DAQP_PIPELINE = "otmm+qp (daqp, persistent)"
+#: Per-step targets of the preview pipelines [µs] (issue 28): median and p99.
+PREVIEW_MEDIAN_US = 1000.0
+PREVIEW_P99_US = 3000.0
 #: Consecutive states a pipeline runs before the next one takes over (see time_pipelines).
 BLOCK = 25
 
@@ -134,7 +137,8 @@ def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
       ``otmm+qp (solver)`` ≤ 0.5 ×;
     * ``otmm+qp`` with the QP solved every step (fast path off) ≤ 0.5 × pink (daqp);
     * ``otmm+pinv`` ≤ 0.30 × pink (daqp) and ≤ 4 × the floor (when the floor was timed);
-    * each ``qp`` pipeline ≤ pink with the same QP solver.
+    * each ``qp`` pipeline ≤ pink with the same QP solver;
+    * each ``preview`` pipeline: median ≤ 1 ms and p99 ≤ 3 ms (absolute, issue 28).
     """
     median = {row["pipeline"]: row["median_us"] for row in rows}
     reference = median.get(REFERENCE)
@@ -159,6 +163,11 @@ def check_targets(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 _check(f"otmm+pinv ≤ {PINV_FLOOR_TARGET:g} × {FLOOR}", median["otmm+pinv"],
                        PINV_FLOOR_TARGET * median[FLOOR])
             )  # fmt: skip
+    for row in rows:
+        if row["pipeline"].startswith("preview"):
+            name = row["pipeline"]
+            checks.append(_check(f"{name} median ≤ 1 ms", row["median_us"], PREVIEW_MEDIAN_US))
+            checks.append(_check(f"{name} p99 ≤ 3 ms", row["p99_us"], PREVIEW_P99_US))
     for name, value in median.items():
         solver = qp_label_solver(name)
         if solver is None:

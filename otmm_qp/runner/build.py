@@ -216,14 +216,16 @@ def build_controllers(
 def dry_run(controller: Controller, episode: Episode) -> None:
     """Take one step with a copy of ``controller`` at the episode's start configuration.
 
-    Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``) then fail
-    before any compute; the controller itself is left untouched.
+    Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``, a preview
+    horizon the trajectory cannot give or knots that do not fit ``dt``) then fail before any
+    compute; the copy is bound with the episode's ``dt`` and trajectory, the controller itself
+    is left untouched.
     """
     robot = episode.robot
     state = KinematicState.compute(robot, episode.q0, episode.task_weight)
     xdot = np.asarray(episode.trajectory.sample(0.0)[1], dtype=float)
     trial = copy.deepcopy(controller)
-    trial.bind(robot, 1.0)
+    trial.bind(robot, episode.dt, episode.trajectory)
     trial.step(state, xdot, np.zeros(robot.nv))
 
 

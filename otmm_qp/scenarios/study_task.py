@@ -80,6 +80,7 @@ class StudyTaskTrajectory(Trajectory):
     ) -> None:
         arm, task = generate_task(robot, generator, seed, task_weight)
         self._motion = task.trajectory
+        self.lookahead = task.trajectory.lookahead  # the task's own information class
         self.duration = float(task.duration)
         self.q0 = np.asarray(task.q0, dtype=float)
         expected = np.asarray(arm.forward(arm.configuration(self.q0)), dtype=float)

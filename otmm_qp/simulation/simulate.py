@@ -140,7 +140,7 @@ def simulate(
         early; the steps done so far are kept and ``error_message`` says why.
     """
     robot, dt = episode.robot, episode.dt
-    controller.bind(robot, dt)
+    controller.bind(robot, dt, episode.trajectory)
     plant = plant if plant is not None else PlantChain([IdealPlant()])
     conditioning = conditioning if conditioning is not None else Conditioning()
     if np.all(np.isfinite(episode.q0)):

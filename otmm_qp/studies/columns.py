@@ -84,6 +84,7 @@ _CONTROLLER = (
     ("backend", _S, "backend type"),
     ("controller_params", _S, "filter and backend parameters, canonical JSON"),
     ("loop_mode", _S, "open or clik (offline: the reference)"),
+    ("information", _S, "what the row knew of the task: causal, preview H s, or offline"),
     ("plant", _S, "label of the plants axis value (null without a plants axis)"),
     ("dt", _F, "control period [s]"),
     ("duration", _F, "episode duration: the task's plus duration.extra, capped [s]"),

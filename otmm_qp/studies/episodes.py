@@ -32,6 +32,9 @@ from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
 from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, plant_name, study_episode
 from otmm_qp.studies.task_ids import entry_label, task_id
 
+#: The ``information`` column of the reference rows (the row's backend's
+#: :attr:`~otmm_qp.backends.backend.Backend.information` for every other row).
+OFFLINE_INFORMATION = "offline"
 #: Metrics that measure wall-clock time: they differ between runs and executors.
 TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")
 
@@ -113,6 +116,7 @@ def _base_row(
     }
     if controller == REFERENCE_INDEX:
         row.update(oracle_fields(config))
+        row["information"] = OFFLINE_INFORMATION  # the whole path, solved offline
     else:
         spec = controllers[controller]
         params = {
@@ -225,6 +229,7 @@ def _controller_episode(
     settings = MetricSettings(**config.metrics.model_dump())
     try:
         made = build_controller(spec, f"controllers.{index}", settings.blow_up_speed)
+        row["information"] = made.backend.information  # causal, or preview H s
         stage = build_stage(spec)
         episode = study_episode(config, built, str(row["loop_mode"]))
         record = run_episode(episode, made, settings, stage)

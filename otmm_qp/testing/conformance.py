@@ -20,7 +20,8 @@ Checks per scenario (thresholds are module constants, stated here):
    ``max_joint_speed``);
 4. **tracking** — ``rms_error`` ≤ :data:`TRACKING_FACTOR` × the best ``rms_error`` of the
    built-in backends on the same scenario + :data:`TRACKING_ATOL` [m]. The reference set is
-   every backend registered from ``otmm_qp_controllers`` (with :data:`REFERENCE_PARAMS`),
+   every causal backend registered from ``otmm_qp_controllers`` (with
+   :data:`REFERENCE_PARAMS`; a preview backend, which reads the path ahead, is left out),
    excluding runs that blew up.
 
 The undamped pseudoinverse (``pinv``, RMRC) fails checks 3 and 4 on ``paper/E2``: that
@@ -42,7 +43,7 @@ import numpy as np
 from otmm_qp import registry
 from otmm_qp.config.load import embedded_config_path, load_config
 from otmm_qp.config.schema import SuiteConfig
-from otmm_qp.exceptions import ConfigError, PeerUnavailable, PluginValidationError
+from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable, PluginValidationError
 from otmm_qp.metrics.metrics import MetricSettings
 from otmm_qp.runner.prepare import prepare_experiment
 from otmm_qp.runner.run import RunRecord, run_experiment
@@ -180,12 +181,25 @@ def run_scenario(scenario: Scenario, controller: ControllerSpec) -> RunRecord:
 
 
 def builtin_backends() -> list[str]:
-    """Backends registered by ``otmm_qp_controllers`` (the built-in reference set)."""
+    """Causal backends registered by ``otmm_qp_controllers`` (the built-in reference set).
+
+    A backend that reads the desired path ahead (``preview_horizon`` set, e.g. ``preview``)
+    knows more than the controllers under test and is left out.
+    """
     return [
         name
         for name, spec in registry.specs(registry.BACKENDS).items()
-        if spec.value.startswith(BUILTIN_PREFIX)
+        if spec.value.startswith(BUILTIN_PREFIX) and _causal(name)
     ]
+
+
+def _causal(name: str) -> bool:
+    """Whether backend ``name`` (with its reference parameters) reads no preview."""
+    try:
+        backend = registry.create(registry.BACKENDS, name, REFERENCE_PARAMS.get(name, {}), name)
+    except OtmmError:  # e.g. a peer library missing: left to run_scenario, which skips it
+        return True
+    return getattr(backend, "preview_horizon", None) is None
 
 
 @functools.cache

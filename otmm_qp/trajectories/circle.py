@@ -40,6 +40,9 @@ class CircleTrajectory(Trajectory):
         profile: ``constant`` (the paper's law, default) or ``quintic`` (smooth start and stop).
     """
 
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
+
     name = "circle"
 
     def __init__(

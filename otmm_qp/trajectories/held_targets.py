@@ -39,6 +39,9 @@ class HeldTargetsTrajectory(Trajectory):
     """
 
     name = "held_targets"
+    #: Causal: each set-point is revealed when it is commanded, as in teleoperation
+    #: (:attr:`Trajectory.lookahead`), so no controller may anticipate the next jump.
+    lookahead = 0.0
 
     def __init__(
         self,

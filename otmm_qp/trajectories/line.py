@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -13,6 +14,9 @@ from otmm_qp.trajectories.trajectory import Trajectory
 
 class _Line(Trajectory):
     """Shared constructor of the lines: ``begin`` defaults to the start position."""
+
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
 
     def __init__(
         self,

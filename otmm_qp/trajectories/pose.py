@@ -12,6 +12,7 @@ w]`` (scalar last, normalised here). Without either, the start orientation is ke
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -143,6 +144,9 @@ class PoseLineTrajectory(Trajectory):
         profile: ``quintic`` or ``constant``.
     """
 
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
+
     name = "pose_line"
 
     def __init__(
@@ -204,6 +208,9 @@ class PoseCircleTrajectory(Trajectory):
         end_quaternion: End orientation ``[x, y, z, w]``.
         profile: ``quintic`` (smooth start and stop, default) or ``constant``.
     """
+
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
 
     name = "pose_circle"
 

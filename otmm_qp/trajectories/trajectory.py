@@ -15,6 +15,11 @@ class Trajectory(abc.ABC):
     value at the start configuration (so a circle can start at the point nearest to it and a
     pose trajectory can keep the start orientation).
 
+    Information is explicit: at time ``t`` a controller may read ``x_d(t + τ)`` only for
+    ``0 ≤ τ ≤`` :attr:`lookahead` (:mod:`otmm_qp.trajectories.preview`). The default, 0, is a
+    *causal* motion (only the present is known: a teleoperated target, a live stream); a
+    planned motion known in full (every built-in analytic path) declares ``inf``.
+
     Attributes:
         duration: Natural duration [s] (one period, the motion time), used when the
             experiment gives none.
@@ -22,6 +27,8 @@ class Trajectory(abc.ABC):
 
     #: The class's own name (e.g. ``"circle"``), a class constant never assigned on an instance.
     name: ClassVar[str] = "trajectory"
+    #: How far ahead [s] the motion is known at any time (0: causal; inf: planned in full).
+    lookahead: float = 0.0
     duration: float
 
     @abc.abstractmethod

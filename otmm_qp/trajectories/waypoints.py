@@ -8,6 +8,7 @@ value is held.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -74,6 +75,9 @@ class WaypointsTrajectory(Trajectory):
         segment_durations: Time of each segment [s] instead of ``duration``.
         return_to_start: Append the start value as a last waypoint.
     """
+
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
 
     name = "waypoints"
 
@@ -151,6 +155,9 @@ class JointWaypointsTrajectory(Trajectory):
         segment_durations: Time of each segment [s] instead of ``duration``.
         return_to_start: Append the first waypoint as a last one.
     """
+
+    #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
+    lookahead = math.inf
 
     name = "joint_waypoints"
 

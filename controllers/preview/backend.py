@@ -1,0 +1,315 @@
+r"""The ``preview`` backend: one QP per control step over a horizon of the known future.
+
+Each step (receding horizon): shift the last plan by one step into the nominal
+(:meth:`~.knots.KnotGrid.shift_matrix`), linearise the task at every nominal knot
+(:math:`\bar J_i`, :math:`\bar r_i`, :mod:`.targets`), solve the QP of :mod:`.formulation` in
+the run's one warm-started solver session, execute the first segment's velocity ``v_1``
+(clipped into the step's box of the project's limits) and keep the rest as the next nominal.
+
+``preview`` reads the desired path ``x_d(t + τ)`` for ``τ ≤ H`` (information class
+``preview H s``; a causal trajectory is refused before any compute);
+``preview_causal`` (:class:`CausalPreviewBackend`) solves the same QP with the horizon filled
+by holding the present command (information class ``causal``), so the two differ only in what
+they know.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from numbers import Integral, Real
+from typing import ClassVar, Literal, NamedTuple
+
+import numpy as np
+
+from otmm_qp.backends.backend import BackendOutput
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.limits import AccelerationLimit, LimitSpec, PositionLimit, VelocityLimit, make_limits
+from otmm_qp.limits.options import LIMITS
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.state import KinematicState
+from otmm_qp.status import Status
+from otmm_qp.trajectories.preview import check_preview
+from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
+
+from ..qp.box_backend import SOLVER, SOLVER_TOL, BoxQpBackend
+from ..qp.formulation import clip_into_box
+from ..qp.solvers import QpProblem, Solution
+from .formulation import PreviewProblem, PreviewWeights
+from .knots import KnotGrid
+from .targets import HeldCommandTargets, Targets, TrajectoryTargets
+
+__all__ = ["CausalPreviewBackend", "PreviewBackend", "PreviewStep"]
+
+InfeasiblePolicy = Literal["raise", "hold", "dls"]
+_WEIGHT = Interval(Real, 0, None, closed="left")
+
+
+class PreviewStep(NamedTuple):
+    """What one preview step solved (``BackendOutput.details``; buffers, copy to keep).
+
+    Attributes:
+        bounds: The step's box of ``v_1`` [rad/s], shape ``(2, nv)``.
+        problem: The QP handed to the solver, or None (empty box).
+        solution: The solver's answer, or None.
+        plan: The plan's segment velocities [rad/s], shape ``(K, nv)`` (the solution, or the
+            shifted nominal when there was none).
+        taus: The knot offsets ``τ_1 … τ_K`` [s], shape ``(K,)``.
+    """
+
+    bounds: FloatArray
+    problem: QpProblem | None
+    solution: Solution | None
+    plan: FloatArray
+    taus: FloatArray
+
+
+class PreviewBackend(BoxQpBackend):
+    r"""Receding-horizon preview IK: the QP of :mod:`.formulation`, one per step.
+
+    Args:
+        horizon: ``H`` [s], > 0: how far ahead the desired path is read (and planned).
+        knots: Cap ``K`` on the horizon's segments (move blocking), an integer ≥ 1.
+        fine_steps: Segments of one control period ``dt`` at the start, an integer ≥ 1.
+        coarse_step: Length Δ [s] of the later segments, a multiple of ``dt`` dividing
+            ``H − fine·dt``; None: the most segments within ``knots``, each ≥ ``dt``.
+        regularization: μ > 0 (the one-step QP's ``½μ‖q̇‖²``).
+        smoothness: ρ ≥ 0, weight of the plan's second differences.
+        jump: ρ₀ ≥ 0, weight of the executed step's velocity change ``‖v_1 − q̇_prev‖²``.
+        trust_region: κ ≥ 0, weight of the distance to the nominal knots.
+        solver: ``daqp``, ``proxsuite``, ``osqp`` (persistent sessions, warm started) or
+            another installed qpsolvers backend.
+        limits: The project's limits (:mod:`otmm_qp.limits`): the first segment keeps their
+            box; the later ones the speed limit (a ``velocity`` entry's ``max_speed`` caps
+            it), the position box when a ``position`` limit is listed (default) and the
+            acceleration limit when one is listed. None: velocity and position (gain 0.5).
+        infeasible_policy: ``raise``, ``hold`` or ``dls`` (the nominal's first velocity
+            clipped into the relaxed box), as the ``qp`` backend.
+        fast_path: Skip the solver when the unconstrained minimiser (one Cholesky) meets every
+            constraint — then it is the QP's optimum.
+
+    Raises:
+        ParameterError: A parameter out of range (at construction), or a knot layout that
+            does not fit ``dt`` (at :meth:`bind`: ``H < dt``, a ``coarse_step`` that is not
+            a multiple of ``dt`` or does not divide the rest, more knots than the cap).
+        PreviewUnavailable: At :meth:`attach`, a trajectory known less than ``H`` ahead.
+    """
+
+    name = "preview"
+    policies = ("raise", "hold", "dls")
+    parameter_constraints: ClassVar[Constraints] = {
+        "horizon": Interval(Real, 0, None, closed="neither", unit="s"),
+        "knots": Interval(Integral, 1, None, closed="left"),
+        "fine_steps": Interval(Integral, 1, None, closed="left"),
+        "coarse_step": [Interval(Real, 0, None, closed="neither", unit="s"), None],
+        "regularization": Interval(Real, 0, None, closed="neither"),
+        "smoothness": _WEIGHT,
+        "jump": _WEIGHT,
+        "trust_region": _WEIGHT,
+        "solver": SOLVER,
+        "limits": [LIMITS, None],
+        "infeasible_policy": OneOf(*policies),
+        "fast_path": Boolean(),
+    }
+
+    def __init__(
+        self,
+        horizon: float = 1.0,
+        knots: int = 16,
+        fine_steps: int = 4,
+        coarse_step: float | None = None,
+        regularization: float = 1e-4,
+        smoothness: float = 0.001,
+        jump: float = 0.0,
+        trust_region: float = 1e-3,
+        solver: str = "daqp",
+        limits: Sequence[LimitSpec] | None = None,
+        infeasible_policy: InfeasiblePolicy = "raise",
+        fast_path: bool = True,
+    ) -> None:
+        check_params(self, locals())
+        super().__init__(solver, make_limits(limits), infeasible_policy)
+        self.fast_path = bool(fast_path)
+        self.horizon = float(horizon)
+        self.knots = int(knots)
+        self.fine_steps = int(fine_steps)
+        self.coarse_step = None if coarse_step is None else float(coarse_step)
+        self.weights = PreviewWeights(
+            float(regularization), float(smoothness), float(jump), float(trust_region)
+        )
+        self._damping = float(np.sqrt(self.weights.regularization))
+        self._targets: Targets | None = None
+        self._trajectory: Trajectory | None = None
+
+    @property
+    def preview_horizon(self) -> float | None:
+        """``H`` [s]: the backend reads ``x_d(t + τ)`` for ``τ ≤ H``."""
+        return self.horizon
+
+    def bind(self, robot: Robot, dt: float) -> None:
+        """Lay out the knots for ``dt`` and allocate the QP (constant structure).
+
+        Raises:
+            ParameterError: The knot layout does not fit ``dt`` (see the class docstring).
+        """
+        self.grid = KnotGrid.layout(self.horizon, dt, self.fine_steps, self.knots, self.coarse_step)
+        self._shift = self.grid.shift_matrix()
+        nv, count = robot.nv, self.grid.count
+        boxes = self.limits.boxes
+        position = any(isinstance(limit, PositionLimit) for limit in boxes)
+        acceleration = None
+        for limit in boxes:
+            if isinstance(limit, AccelerationLimit):
+                limit.bind(robot, dt)
+                step = limit.step / dt
+                acceleration = step if acceleration is None else np.minimum(acceleration, step)
+        self._qp = PreviewProblem(self.grid, nv, self.weights, position, acceleration)
+        self._theta_limits = np.array(robot.position_limits, dtype=float).reshape(2, nv)
+        self._jacobians = np.empty((count, robot.task_dim, nv))
+        self._residuals = np.empty((count, robot.task_dim))
+        self._plan = np.zeros((count, nv))
+        super().bind(robot, dt)
+        speed = np.full(nv, np.inf)
+        for limit in boxes:
+            if isinstance(limit, VelocityLimit):
+                speed = np.minimum(speed, limit.speed)
+        self._speed = speed
+        self._targets = self._make_targets(self._trajectory)
+
+    def attach(self, trajectory: Trajectory) -> None:
+        """Keep the run's desired path, refusing one known less than ``H`` ahead.
+
+        Raises:
+            PreviewUnavailable: ``trajectory.lookahead < H``.
+        """
+        check_preview(trajectory, self.preview_horizon, "horizon")
+        self._trajectory = trajectory
+        if hasattr(self, "grid"):
+            self._targets = self._make_targets(trajectory)
+
+    def _make_targets(self, trajectory: Trajectory | None) -> Targets | None:
+        """The preview's targets: the trajectory's window (None until one is attached)."""
+        return None if trajectory is None else TrajectoryTargets(trajectory, self.grid.taus)
+
+    def reset(self) -> None:
+        """Forget the plan, the clock and the solver's warm start."""
+        super().reset()
+        self._k = 0
+        if hasattr(self, "_plan"):
+            self._plan[:] = 0.0
+
+    def seek(self, t: float) -> None:
+        """Set the clock: the next solve is the step at ``t`` [s] (a replay that skips steps)."""
+        self._k = int(round(t / self.dt))
+
+    def solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
+        """``q̇ = v_1`` [rad/s], shape ``(nv,)``, within the step's box; details a PreviewStep.
+
+        The k-th call after :meth:`reset` is the step at ``t = k·dt`` (as the loop runs it).
+
+        Raises:
+            ParameterError: No trajectory was attached to a ``preview`` backend.
+            NonFiniteState: The desired path is NaN or inf inside the window.
+            InfeasibleProblem: No solution under the ``raise`` policy.
+        """
+        targets = self._targets
+        if targets is None:
+            raise ParameterError(
+                "horizon", "a preview backend needs the run's trajectory (Controller.bind)"
+            )
+        t = self._k * self.dt
+        self._k += 1
+        theta, empty = self.begin_step(state, qdot_prev)
+        plan = self._shift @ self._plan  # the nominal: the last plan advanced by one step
+        taus = self.grid.taus
+        if empty:
+            detail = self.box.conflict(self.robot.joint_names)
+            qdot, status = self.fallback(detail, (None, None), True, plan[0])
+            self._plan = plan
+            return self._output(qdot, status, None, None, plan, taus)
+        nominal = np.cumsum(self.grid.steps[:, None] * plan, axis=0)  # d̄_i, (K, nv)
+        knots = self._linearise(state, theta, nominal)
+        targets.residuals(self.robot, state, xdot, t, knots, self._residuals)
+        room = self._theta_limits - theta
+        problem = self._qp.build(
+            self._jacobians, self._residuals, nominal, qdot_prev, self.box.bounds,
+            self._speed, room,
+        )  # fmt: skip
+        solution = self._solve(problem)
+        settled = None if solution.x is None else clip_into_box(
+            solution.x[: self.robot.nv], self.box.bounds, SOLVER_TOL
+        )  # fmt: skip
+        if settled is None or solution.x is None:
+            detail = f"solver {self.solver!r} found no solution ({solution.detail})"
+            qdot, status = self.fallback(detail, (problem.copy(), solution), False, plan[0])
+            self._plan = plan
+            return self._output(qdot, status, problem, solution, plan, taus)
+        qdot, active = settled
+        self._plan = plan  # same shape: the buffer takes the solution
+        np.copyto(plan, solution.x.reshape(plan.shape))
+        plan[0] = qdot
+        status = Status.BOUNDED if active else Status.OK
+        return self._output(qdot, status, problem, solution, self._plan, taus)
+
+    def _solve(self, problem: QpProblem) -> Solution:
+        """The fast path (the unconstrained minimiser, when feasible), else the session."""
+        if self.fast_path:
+            x = self._qp.unconstrained()
+            if x is not None:
+                return Solution(x, True, "unconstrained minimiser feasible")
+        self.session.load(problem)
+        return self.session.solve()
+
+    def _linearise(
+        self, state: KinematicState, theta: FloatArray, nominal: FloatArray
+    ) -> list[FloatArray]:
+        r"""Write :math:`\bar J_i = W J(\bar\theta_i)` into ``_jacobians``; the knots' task values.
+
+        A knot at the present state (``d̄_i = 0``, e.g. every knot on the first step) reuses
+        the state's Jacobian: no kinematics call.
+        """
+        robot, weight = self.robot, state.weight
+        knots: list[FloatArray] = []
+        for i, offset in enumerate(nominal):
+            if not offset.any():
+                knots.append(state.x)
+                self._jacobians[i] = state.task_jacobian
+                continue
+            x, jacobian = robot.kinematics(robot.configuration(theta + offset))
+            knots.append(x)
+            np.multiply(weight[:, None], jacobian, out=self._jacobians[i])
+        return knots
+
+    def _output(
+        self,
+        qdot: FloatArray,
+        status: Status,
+        problem: QpProblem | None,
+        solution: Solution | None,
+        plan: FloatArray,
+        taus: FloatArray,
+    ) -> BackendOutput:
+        record = PreviewStep(self.box.bounds, problem, solution, plan, taus)
+        return BackendOutput(qdot, status, self._damping, details=record)
+
+
+class CausalPreviewBackend(PreviewBackend):
+    r"""The causal counterpart: the same QP, the horizon filled by holding the present command.
+
+    The targets are :math:`\tau_i\dot x_w` from the present task value (:mod:`.targets`), so
+    it runs on any trajectory and behind any filter; beside ``preview`` it shows what the
+    preview itself buys. Parameters as :class:`PreviewBackend`.
+    """
+
+    name = "preview_causal"
+
+    @property
+    def preview_horizon(self) -> float | None:
+        """None: causal (the horizon holds the present command, no future is read)."""
+        return None
+
+    def _make_targets(self, trajectory: Trajectory | None) -> Targets | None:
+        """The held command (no trajectory needed)."""
+        return HeldCommandTargets(self.grid.taus)

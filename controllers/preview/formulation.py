@@ -1,0 +1,247 @@
+r"""The preview QP over a horizon of knots, pure: its weights and its data written in place.
+
+Decision: the joint velocity ``v_i`` [rad/s] on each segment of the :class:`~.knots.KnotGrid`,
+``x = (v_1, …, v_K)``, shape ``(K·nv,)``; the displacement of knot ``i`` from the present
+joint coordinates θ₀ is :math:`\delta_i = \sum_{j \le i} h_j v_j` (the first knot, ``τ_0``, is
+the state the robot is in). Linearised along the nominal knots
+:math:`\bar\theta_i = \theta_0 + \bar d_i` (the previous plan shifted by one step) with the
+weighted Jacobians :math:`\bar J_i = W J(\bar\theta_i)` and residuals :math:`\bar r_i`
+[task units] (what knot ``i`` still misses, :mod:`.targets`):
+
+.. math::
+    \min_v\ &\tfrac12\sum_{i=1}^{K} \frac{h_i}{H\,dt^2}\Big(
+        \|\bar J_i(\delta_i - \bar d_i) - \bar r_i\|^2 + \kappa\|\delta_i - \bar d_i\|^2\Big)
+      + \tfrac12\mu\sum_{i=1}^{K}\frac{h_i}{H}\|v_i\|^2 \\
+      &+ \tfrac12\rho_0\|v_1 - v_0\|^2
+      + \tfrac12\rho\sum_{i=1}^{K}\frac{\tilde h_i}{H}\Big\|\frac{v_i - v_{i-1}}{\tilde h_i}
+        \,dt\Big\|^2,\qquad \tilde h_i = \tfrac12(h_{i-1} + h_i),
+        \ v_0 = \dot q_{prev},\ h_0 = dt \\
+    \text{s.t.}\ &lb \le v_1 \le ub \quad\text{(the step's box of the project's limits)},\\
+      &-\dot q_{max} \le v_i \le \dot q_{max},\quad
+      \theta_{min} - \theta_0 \le \delta_i \le \theta_{max} - \theta_0,\quad
+      |v_i - v_{i-1}| \le a_{max}\tilde h_i \quad (i \ge 2)
+
+The task term is the time average of the squared tracking error over the horizon, in units
+of one step's velocity (÷ dt²); κ is a trust region keeping the plan near the nominal where
+the linearisation holds (it keeps the Hessian well conditioned where ``J̄ᵀJ̄`` loses rank,
+as the offline reference's Levenberg–Marquardt term does); ρ weights the second differences
+of the knot positions (the plan's accelerations, the previous step's velocity ``v_0`` included,
+so consecutive plans agree) and ρ₀ adds weight on the one-step jump of the executed velocity.
+The task error is soft — its slack is the residual itself — and every limit hard.
+With ``K = 1`` (``H = dt``) and ρ = ρ₀ = κ = 0 the QP is the one-step QP
+:math:`\min \tfrac12\|J_w v - \bar r_1/dt\|^2 + \tfrac12\mu\|v\|^2` in the box.
+
+Assembly is structured: with :math:`G_i = \frac{h_i}{H dt^2}(\bar J_i^\top\bar J_i +
+\kappa I)` and :math:`S_m = \sum_{i \ge m} G_i`, the task Hessian's block ``(j, l)`` is
+:math:`h_j h_l S_{\max(j,l)}` (one suffix sum, no ``(Kn × K nv)`` product); the
+regularisation and smoothness blocks and every constraint row are constant and set once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import lapack
+
+from otmm_qp.exceptions import ParameterError
+from otmm_qp.robots.robot import FloatArray
+
+from ..qp.solvers import BIG, QpProblem
+from .knots import KnotGrid
+
+__all__ = ["PreviewProblem", "PreviewWeights"]
+
+
+@dataclass(frozen=True)
+class PreviewWeights:
+    """The cost weights of the preview QP (module docstring).
+
+    Attributes:
+        regularization: μ > 0 [task units² / (rad/s)²], the weight of ``½‖v‖²``.
+        smoothness: ρ ≥ 0 [task units² / (rad/s)²], the weight of the plan's second
+            differences (its velocity changes per ``dt``).
+        jump: ρ₀ ≥ 0 [task units² / (rad/s)²], the weight of ``‖v_1 − q̇_prev‖²``.
+        trust_region: κ ≥ 0 [task units² / rad²], the weight of ``‖δ_i − d̄_i‖²``.
+
+    Raises:
+        ParameterError: A weight out of range.
+    """
+
+    regularization: float = 1e-4
+    smoothness: float = 0.001
+    jump: float = 0.0
+    trust_region: float = 1e-3
+
+    def __post_init__(self) -> None:
+        """Validate the weights."""
+        for field, value, positive in (
+            ("regularization", self.regularization, True),
+            ("smoothness", self.smoothness, False),
+            ("jump", self.jump, False),
+            ("trust_region", self.trust_region, False),
+        ):
+            if not math.isfinite(value) or value < 0.0 or (positive and value == 0.0):
+                allowed = "> 0" if positive else ">= 0"
+                raise ParameterError(field, f"must be a finite number {allowed}, got {value}")
+
+
+class PreviewProblem:
+    r"""The preview QP of one grid and arm, its data preallocated and rewritten each step.
+
+    Args:
+        grid: The horizon's knots.
+        nv: Joints.
+        weights: The cost weights.
+        position: Whether the future knots keep ``θ_min ≤ θ ≤ θ_max`` (rows).
+        acceleration: ``a_max`` [rad/s²], shape ``(nv,)``, for rows on the future knots'
+            velocity changes, or None (none).
+
+    Attributes:
+        problem: The :class:`~otmm_qp_controllers.qp.solvers.QpProblem` handed to the solver
+            (``K·nv`` variables; constant structure).
+    """
+
+    def __init__(
+        self,
+        grid: KnotGrid,
+        nv: int,
+        weights: PreviewWeights,
+        position: bool,
+        acceleration: FloatArray | None,
+    ) -> None:
+        h = grid.steps
+        count, dt, horizon = grid.count, float(h[0]), grid.horizon
+        self.grid, self.nv, self.weights = grid, nv, weights
+        size = count * nv
+        future = count - 1
+        rows = (future * nv if position else 0) + (future * nv if acceleration is not None else 0)
+        self.problem = QpProblem.allocate(size, rows)
+        self._task_weight = h / (horizon * dt * dt)  # (K,)
+        self._hh = np.multiply.outer(h, h)[:, :, None, None]  # (K, K, 1, 1)
+        self._index = np.maximum.outer(np.arange(count), np.arange(count))
+        self._blocks = np.empty((count, count, nv, nv))
+        self._constant = self._constant_hessian(h, dt, horizon)
+        self._first_jump = weights.jump
+        eye = np.eye(nv)
+        C = self.problem.C
+        row = 0
+        if position:
+            for i in range(1, count):
+                for j in range(i + 1):
+                    C[row : row + nv, j * nv : (j + 1) * nv] = h[j] * eye
+                row += nv
+            self._position_rows = slice(0, row)
+        else:
+            self._position_rows = slice(0, 0)
+        self._acceleration_rows = slice(row, rows)
+        if acceleration is not None:
+            mid = 0.5 * (h[:-1] + h[1:])  # h̃_i, i = 2..K
+            for i in range(1, count):
+                C[row : row + nv, i * nv : (i + 1) * nv] = eye
+                C[row : row + nv, (i - 1) * nv : i * nv] = -eye
+                row += nv
+            change = np.minimum(np.outer(mid, acceleration).reshape(-1), BIG)
+            self.problem.u[self._acceleration_rows] = change
+            self.problem.l[self._acceleration_rows] = -change
+
+    def _constant_hessian(self, h: FloatArray, dt: float, horizon: float) -> FloatArray:
+        """The regularisation and smoothness blocks, ``(K·nv, K·nv)`` (module docstring)."""
+        count, nv, w = h.shape[0], self.nv, self.weights
+        diagonal = w.regularization * h / horizon
+        # Velocity-change weights: w_i = ρ dt²/(H h̃_i) (h̃_1 = dt: q̇_prev is segment 0 of
+        # length dt), plus ρ₀ on the first.
+        change = np.empty(count + 1)
+        change[0] = w.smoothness * dt / horizon + w.jump
+        change[1:count] = w.smoothness * dt * dt / (horizon * 0.5 * (h[:-1] + h[1:]))
+        change[count] = 0.0
+        diagonal = diagonal + change[:count] + change[1:]
+        blocks = np.zeros((count, nv, count, nv))
+        eye = np.eye(nv)
+        for i in range(count):
+            blocks[i, :, i, :] = diagonal[i] * eye
+            if i:
+                blocks[i, :, i - 1, :] = -change[i] * eye
+                blocks[i - 1, :, i, :] = -change[i] * eye
+        return blocks.reshape(count * nv, count * nv)
+
+    def build(
+        self,
+        jacobians: FloatArray,
+        residuals: FloatArray,
+        nominal: FloatArray,
+        qdot_prev: FloatArray,
+        first_box: FloatArray,
+        speed: FloatArray,
+        position_room: FloatArray,
+    ) -> QpProblem:
+        r"""Write this step's QP into :attr:`problem` and return it.
+
+        Args:
+            jacobians: :math:`\bar J_i`, shape ``(K, n, nv)`` (weighted).
+            residuals: :math:`\bar r_i` [task units], shape ``(K, n)`` (weighted).
+            nominal: :math:`\bar d_i` [rad], shape ``(K, nv)``.
+            qdot_prev: ``q̇_prev`` [rad/s], shape ``(nv,)``.
+            first_box: ``[lb; ub]`` of ``v_1`` [rad/s], shape ``(2, nv)``.
+            speed: ``q̇_max`` [rad/s] of the future segments, shape ``(nv,)`` (inf: none).
+            position_room: ``[θ_min − θ₀; θ_max − θ₀]`` [rad], shape ``(2, nv)``.
+        """
+        problem, count, nv = self.problem, self.grid.count, self.nv
+        h, c = self.grid.steps, self._task_weight
+        kappa = self.weights.trust_region
+        transposed = jacobians.transpose(0, 2, 1)  # (K, nv, n)
+        gram = np.matmul(transposed, jacobians)  # (K, nv, nv); batched matmul beats einsum
+        if kappa > 0.0:
+            gram.reshape(count, -1)[:, :: nv + 1] += kappa
+        gram *= c[:, None, None]
+        # g_i = c_i J̄_iᵀ r̄_i + G_i d̄_i, then suffix sums over i.
+        pull = np.matmul(transposed, residuals[:, :, None])[:, :, 0]
+        pull *= c[:, None]
+        pull += np.matmul(gram, nominal[:, :, None])[:, :, 0]
+        suffix = np.cumsum(gram[::-1], axis=0)[::-1]
+        pull_suffix = np.cumsum(pull[::-1], axis=0)[::-1]
+        blocks = self._blocks
+        np.take(suffix, self._index, axis=0, out=blocks)
+        blocks *= self._hh
+        np.copyto(problem.P.reshape(count, nv, count, nv), blocks.transpose(0, 2, 1, 3))
+        np.add(problem.P, self._constant, out=problem.P)
+        linear = problem.q.reshape(count, nv)
+        np.multiply(pull_suffix, -h[:, None], out=linear)
+        linear[0] -= self._first_jump * qdot_prev
+        lb, ub = problem.lb.reshape(count, nv), problem.ub.reshape(count, nv)
+        np.clip(first_box[0], -BIG, BIG, out=lb[0])
+        np.clip(first_box[1], -BIG, BIG, out=ub[0])
+        limit = np.minimum(speed, BIG)
+        lb[1:] = -limit
+        ub[1:] = limit
+        rows = self._position_rows
+        if rows.stop:
+            room = np.clip(position_room, -BIG, BIG)
+            problem.l[rows] = np.tile(room[0], count - 1)
+            problem.u[rows] = np.tile(room[1], count - 1)
+        return problem
+
+    def unconstrained(self) -> FloatArray | None:
+        r"""The minimiser of the built QP's cost without constraints, when it meets them all.
+
+        :math:`x^* = -P^{-1}q` by one LAPACK Cholesky (``dpotrf``/``dpotrs``); returned only
+        when :math:`lb \le x^* \le ub` and :math:`l \le Cx^* \le u` hold, where convexity makes
+        it the QP's optimum (the fast path: no solver call). None otherwise (or when the
+        factorisation fails).
+        """
+        problem = self.problem
+        factor, info = lapack.dpotrf(problem.P, lower=False, clean=False, overwrite_a=False)
+        if info != 0:
+            return None
+        x, info = lapack.dpotrs(factor, problem.q, lower=False)
+        if info != 0:
+            return None
+        np.negative(x, out=x)
+        if not (np.all(x >= problem.lb) and np.all(x <= problem.ub)):
+            return None  # also for NaN
+        if problem.C.shape[0]:
+            rows = problem.C.dot(x)
+            if not (np.all(rows >= problem.l) and np.all(rows <= problem.u)):
+                return None
+        return np.asarray(x, dtype=float)

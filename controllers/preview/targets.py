@@ -1,0 +1,115 @@
+r"""What each knot still misses: the residuals :math:`\bar r_i` of the preview QP.
+
+Two sources of the horizon's targets, the one difference between the preview backend and its
+causal counterpart (same QP, same nominal, same Jacobians):
+
+* :class:`TrajectoryTargets` (preview): the desired path itself,
+  :math:`\bar r_i = W\,e(x_d(t + \tau_i), x(\bar\theta_i))`;
+* :class:`HeldCommandTargets` (causal): the horizon filled by holding the present command
+  :math:`\dot x_w` (weighted, after the filters), the target displacement from the present
+  task value :math:`x_0` being :math:`\tau_i\dot x_w`:
+  :math:`\bar r_i = \tau_i\dot x_w - W\,e(x(\bar\theta_i), x_0)`.
+
+``e(a, b)`` is :meth:`Robot.task_error` (``a ⊖ b``: a difference, or the log map for poses).
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+
+import numpy as np
+
+from otmm_qp.exceptions import NonFiniteState
+from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.state import KinematicState
+from otmm_qp.trajectories.trajectory import Trajectory
+
+__all__ = ["HeldCommandTargets", "Targets", "TrajectoryTargets"]
+
+
+class Targets(abc.ABC):
+    """The residuals of the horizon's knots at one step."""
+
+    @abc.abstractmethod
+    def residuals(
+        self,
+        robot: Robot,
+        state: KinematicState,
+        xdot: FloatArray,
+        t: float,
+        knots: list[FloatArray],
+        out: FloatArray,
+    ) -> FloatArray:
+        r"""Write :math:`\bar r_i` [weighted task units], shape ``(K, n)``, into ``out``.
+
+        Args:
+            robot: The arm (its task error).
+            state: The step's state (``x_0``, the weight ``W``).
+            xdot: The weighted command ``ẋ_w``, shape ``(n,)``.
+            t: Present time [s].
+            knots: The task values :math:`x(\bar\theta_i)` of the nominal knots, ``K`` of them.
+            out: Array of shape ``(K, n)``.
+
+        Raises:
+            NonFiniteState: A target is NaN or inf.
+        """
+
+
+class TrajectoryTargets(Targets):
+    """The desired path ``x_d(t + τ_i)`` at the knot offsets (preview).
+
+    Args:
+        trajectory: A motion whose ``lookahead`` covers the horizon.
+        taus: Knot offsets ``τ_1 … τ_K`` [s], shape ``(K,)``.
+    """
+
+    def __init__(self, trajectory: Trajectory, taus: FloatArray) -> None:
+        self.trajectory = trajectory
+        self.taus = [float(tau) for tau in taus]
+
+    def residuals(
+        self,
+        robot: Robot,
+        state: KinematicState,
+        xdot: FloatArray,
+        t: float,
+        knots: list[FloatArray],
+        out: FloatArray,
+    ) -> FloatArray:
+        r""":math:`\bar r_i = W\,e(x_d(t + \tau_i), x(\bar\theta_i))`."""
+        position, error, weight = self.trajectory.position, robot.task_error, state.weight
+        for i, (tau, x) in enumerate(zip(self.taus, knots, strict=True)):
+            np.multiply(weight, error(position(t + tau), x), out=out[i])
+        if not math.isfinite(float(out.sum())):
+            raise NonFiniteState(
+                "trajectory", f"x_d is NaN or inf within the preview window after t = {t:g} s"
+            )
+        return out
+
+
+class HeldCommandTargets(Targets):
+    r"""The present command held over the horizon (causal): :math:`\tau_i\dot x_w` from ``x_0``.
+
+    Args:
+        taus: Knot offsets ``τ_1 … τ_K`` [s], shape ``(K,)``.
+    """
+
+    def __init__(self, taus: FloatArray) -> None:
+        self.taus = np.asarray(taus, dtype=float)
+
+    def residuals(
+        self,
+        robot: Robot,
+        state: KinematicState,
+        xdot: FloatArray,
+        t: float,
+        knots: list[FloatArray],
+        out: FloatArray,
+    ) -> FloatArray:
+        r""":math:`\bar r_i = \tau_i\dot x_w - W\,e(x(\bar\theta_i), x_0)`."""
+        np.multiply(self.taus[:, None], xdot, out=out)
+        error, weight, x0 = robot.task_error, state.weight, state.x
+        for i, x in enumerate(knots):
+            out[i] -= weight * error(x, x0)
+        return out

@@ -31,6 +31,7 @@ from otmm_qp.exceptions import (
     PluginValidationError,
     shown,
 )
+from otmm_qp.migration.versions import gone_keys
 
 ROBOTS = "otmm_qp.robots"
 FILTERS = "otmm_qp.filters"
@@ -192,7 +193,7 @@ def check_parameters(
         field: Config path used in the message.
         reserved: Parameters the framework passes itself (hidden from the user).
         explained: Older keys → what to write with the user's own values
-            (:func:`otmm_qp.config.versions.gone_keys`), preferred to ``removed_parameters``.
+            (:func:`otmm_qp.migration.versions.gone_keys`), preferred to ``removed_parameters``.
 
     A plugin's ``removed_parameters`` (old name → one line saying what to write instead, e.g.
     a rename) are refused with that line rather than as unknown, all of them at once.
@@ -278,8 +279,6 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
         factory = load(group, name)
     except PluginNotFound as error:
         raise ConfigError(field, str(error)) from error
-    from otmm_qp.config.versions import gone_keys  # lazily: the config imports the registry
-
     explained = gone_keys(group.rsplit(".", 1)[-1], {**params, "type": name})
     check_parameters(factory, params, field, tuple(framework), explained)
     try:

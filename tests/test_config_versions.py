@@ -16,10 +16,10 @@ import pytest
 import yaml
 
 from otmm_qp.cli import main
-from otmm_qp.config.changes import CHANGES, CURRENT_VERSION
 from otmm_qp.config.load import load_config, parse_config
-from otmm_qp.config.versions import check_schema, inferred_version, migrate
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION
+from otmm_qp.migration.versions import check_schema, inferred_version, migrate
 from otmm_qp.studies.spec import load_study, parse_study
 
 DATA = Path(__file__).parent / "data"

@@ -4,7 +4,7 @@ The default listing reads only the entry points (no plugin is imported, so it st
 ``--params`` loads the plugins and prints, under each, its parameters with their defaults and
 declared constraints (:func:`otmm_qp.validation.parameters`); a third-party plugin that declares
 none lists its signature with ``not declared``. Parameters whose meaning changed between schema
-versions follow (what they mean now and meant before, :mod:`otmm_qp.config.changes`), then
+versions follow (what they mean now and meant before, :mod:`otmm_qp.migration.changes`), then
 renamed or removed parameters, marked
 ``(refused)`` with what to write instead. ``--params NAME ...`` restricts it to the plugins of
 those names.
@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 
 from otmm_qp import registry
-from otmm_qp.config.changes import CHANGES
 from otmm_qp.exceptions import OtmmError
+from otmm_qp.migration.changes import CHANGES
 from otmm_qp.validation import parameters
 
 NAME = "list"

@@ -1,7 +1,7 @@
 """``otmm-qp migrate FILE [-o OUT] [--from N]``: rewrite an older run or study file.
 
 Reads ``FILE`` with the hardened reader, rewrites it into the current schema value by value
-(:func:`otmm_qp.config.versions.migrate`: qp's ``damping: μ`` of schema 1 becomes
+(:func:`otmm_qp.migration.versions.migrate`: qp's ``damping: μ`` of schema 1 becomes
 ``regularization: μ``, a pose_circle without ``profile`` gets ``profile: constant``, older limit
 keys become one ``limits`` list, …), prints the schema it read the file in and one line per key
 changed, and writes the result (``version:`` first) to ``OUT``, or to stdout without ``-o``.
@@ -14,7 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from otmm_qp.config.changes import CURRENT_VERSION, RELEASES
+from otmm_qp.migration.changes import CURRENT_VERSION, RELEASES
 
 NAME = "migrate"
 HELP = "rewrite a run or study file of an older schema into the current one (value by value)"
@@ -42,9 +42,9 @@ def run(args: argparse.Namespace) -> int:
     from otmm_qp.config.emit import dump_config, write_config
     from otmm_qp.config.load import parse
     from otmm_qp.config.schema import SuiteConfig
-    from otmm_qp.config.versions import migrate
     from otmm_qp.config.yaml_loader import load_yaml
     from otmm_qp.exceptions import ConfigError
+    from otmm_qp.migration.versions import migrate
 
     if args.from_version is not None and not 1 <= args.from_version <= CURRENT_VERSION:
         raise ConfigError("--from", f"must be in [1, {CURRENT_VERSION}], got {args.from_version}")

@@ -8,7 +8,7 @@ from typing import Any
 
 import yaml
 
-from otmm_qp.config.versions import versioned
+from otmm_qp.migration.versions import versioned
 
 __all__ = ["dump_config", "write_config"]
 

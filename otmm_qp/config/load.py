@@ -14,9 +14,9 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from otmm_qp.config.schema import SuiteConfig
-from otmm_qp.config.versions import VERSION_KEY, check_schema
 from otmm_qp.config.yaml_loader import load_yaml
 from otmm_qp.exceptions import ConfigError, shown
+from otmm_qp.migration.versions import VERSION_KEY, check_schema
 
 #: Longest value shown in an error message [characters].
 MESSAGE_VALUE_LIMIT = 80
@@ -40,7 +40,7 @@ def parse(model: type[Model], data: Any, source: str) -> Model:
     """Validate already-parsed YAML data as ``model``.
 
     The file's ``version`` and every key that is gone or changed meaning since it are checked
-    first (:func:`~otmm_qp.config.versions.check_schema`: run files may be of schema 1, study
+    first (:func:`~otmm_qp.migration.versions.check_schema`: run files may be of schema 1, study
     files of schema 2 or later); ``version`` is not part of the record.
 
     Raises:

@@ -1,7 +1,7 @@
 r"""Schema versions of config files: refuse a changed meaning, migrate an older file.
 
 Every run and study file may state ``version: N`` (the schema it is written in; see
-:mod:`otmm_qp.config.changes` for what each version changed). When a file is read
+:mod:`otmm_qp.migration.changes` for what each version changed). When a file is read
 (:func:`check_schema`, called by :func:`otmm_qp.config.load.parse` on the parsed YAML):
 
 - ``version`` must be an integer in ``[1, CURRENT_VERSION]``;
@@ -26,8 +26,8 @@ import json
 from collections.abc import Iterator, Mapping
 from typing import Any, NamedTuple
 
-from otmm_qp.config.changes import CHANGES, CURRENT_VERSION, RELEASES, Block, SchemaChange
 from otmm_qp.exceptions import ConfigError, shown
+from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION, RELEASES, Block, SchemaChange
 
 __all__ = [
     "CURRENT_VERSION",

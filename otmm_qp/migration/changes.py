@@ -6,7 +6,7 @@ A run or study file states the schema it is written in with ``version: N``
 ``version``, with what it meant, what it means now and a converter that rewrites a block of
 the older schema into the current one with the same numbers. The loader refuses, in one line
 listing every affected key of the file with its own values, a file that does not state its
-version where a key changed meaning (:mod:`otmm_qp.config.versions`); ``otmm-qp migrate``
+version where a key changed meaning (:mod:`otmm_qp.migration.versions`); ``otmm-qp migrate``
 applies the converters.
 
 =====  ========================  ============  =================================================

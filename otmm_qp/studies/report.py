@@ -23,7 +23,7 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_i
 from otmm_qp.studies.columns import number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
 from otmm_qp.studies.formatting import fmt as _fmt
+from otmm_qp.studies.formatting import interval as _interval
 from otmm_qp.studies.formatting import p_value as _p
 from otmm_qp.studies.formatting import percent as _pct
 from otmm_qp.studies.fronts import (
@@ -45,37 +46,30 @@ from otmm_qp.studies.fronts import (
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
-from otmm_qp.studies.statistics import (
-    ALPHA,
-    Interval,
-    PairedRates,
-    Ranked,
-    binned_medians,
-    bootstrap_interval,
-    paired_ranking,
-    paired_success,
-    significant_digits,
-    wilson_interval,
-)
 from otmm_qp.studies.verdicts import (
+    ALPHA,
     RESAMPLES,
     TaskGroup,
     check_highlight,
     decide_group,
+    generator_rates,
     median_intervals,
     paired_for,
+    sigma_curves,
     study_fronts,
-    success_flags,
+    success_ranking,
+    success_summary,
     task_groups,
 )
 from otmm_qp.studies.verdicts import accuracy_verdict as decide_accuracy
+
+if TYPE_CHECKING:
+    from otmm_qp.studies.statistics import PairedRates, Ranked
 
 #: Metrics summarised by median + bootstrap interval (rows of the metric table).
 MEDIAN_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_MEDIANS))
 #: Metrics compared pairwise after the headline accuracy (rows of the metric table).
 PAIRED_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_PAIRED))
-#: Bins of σ_min at closest approach (log-spaced edges).
-SIGMA_BINS = 6
 
 
 def _is_oracle(row: dict[str, Any]) -> bool:
@@ -91,14 +85,6 @@ _value = number
 
 def _task(row: dict[str, Any]) -> object:
     return task_of(row)
-
-
-def _interval(value: float | Interval, low: float = math.nan, high: float = math.nan) -> str:
-    """``value [low, high]``; endpoints with only the digits their Monte-Carlo error fixes."""
-    if isinstance(value, Interval):
-        digits = [significant_digits(e, value.mc_error) for e in (value.low, value.high)]
-        return f"{_fmt(value.value)} [{_fmt(value.low, digits[0])}, {_fmt(value.high, digits[1])}]"
-    return f"{_fmt(value)} [{_fmt(low)}, {_fmt(high)}]"
 
 
 def _median_metrics(rows: Rows) -> tuple[Metric, ...]:
@@ -122,44 +108,28 @@ def success_table(
     )
     lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
-    where = {"robot": robot} if robot else {}
-    for name in [*rows.controllers(), REFERENCE_NAME]:
-        selected = rows.select(controller=name, **where)
-        if not selected:
-            continue
-        n = len(selected)
-        errors = sum(1 for r in selected if r.get("status") == "error")
-        if name == REFERENCE_NAME:
+    for line in success_summary(rows, robot, [m.name for m in metrics]):
+        if line.rate is None:
             rate = "reference (not ranked)"
         else:
-            wins = sum(1 for r in selected if r["success"])
-            low, high = wilson_interval(wins, n)
-            rates[name] = (wins / n, low, high)
-            rate = f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
-        cells = [name, str(n), str(errors), rate]
-        for row in metrics:
-            values = np.array([_value(r, row.name) for r in selected])
-            cells.append(_interval(bootstrap_interval(values, seed=0, resamples=RESAMPLES)))
+            rates[line.controller] = (line.rate, line.low, line.high)
+            rate = f"{100 * line.rate:.1f} % [{100 * line.low:.1f}, {100 * line.high:.1f}]"
+        cells = [line.controller, str(line.episodes), str(line.errors), rate]
+        cells += [_interval(m) for m in line.medians]
         lines.append("| " + " | ".join(cells) + " |")
     return lines, rates
 
 
 def generator_table(rows: Rows) -> list[str]:
     """Markdown table: success rate [CI] per controller (rows) and robot/generator (columns)."""
-    groups = list(dict.fromkeys((r["robot"], r["generator"]) for r in rows.rows))
+    groups, table = generator_rates(rows)
     lines = [
         "| controller | " + " | ".join(f"{robot} {gen}" for robot, gen in groups) + " |",
         "|---|" + "---|" * len(groups),
     ]
-    for name in rows.controllers():
-        cells = []
-        for robot, gen in groups:
-            selected = rows.select(controller=name, robot=robot, generator=gen)
-            wins = sum(1 for r in selected if r["success"])
-            low, high = wilson_interval(wins, len(selected))
-            rate = 100 * wins / len(selected) if selected else math.nan
-            cells.append(f"{rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    for name, cells in table.items():
+        shown = [f"{100 * r:.0f} % [{100 * low:.0f}, {100 * high:.0f}]" for r, low, high in cells]
+        lines.append(f"| {name} | " + " | ".join(shown) + " |")
     return lines
 
 
@@ -386,9 +356,7 @@ def _robot_section(
     out += ["### Success rates and medians", ""]
     lines, rates = success_table(rows, robot)
     out += lines + [""]
-    flags = success_flags(rows.select(robot=robot))
-    tests = paired_success(flags)
-    ranking = paired_ranking({n: v[0] for n, v in rates.items()}, tests, higher_is_better=True)
+    ranking, tests = success_ranking(rows, robot, {n: v[0] for n, v in rates.items()})
     out += [_ranking_line(ranking, "success rate", "McNemar test"), ""]
     out += _mcnemar_table(tests, robot)
     for paired in (rows.accuracy_metric(), *(m.name for m in PAIRED_METRICS)):
@@ -497,33 +465,6 @@ def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
         )
     out.append("")
     return out
-
-
-def sigma_curves(
-    rows: Rows, robot: str, metric: str
-) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
-    """Binned medians of ``metric`` vs ``task.sigma_min_closest`` per controller on ``robot``."""
-    selected = [r for r in rows.select(robot=robot) if _value(r, "task.sigma_min_closest") > 0]
-    if not selected:
-        return np.zeros(0), {}
-    sigma = np.array([_value(r, "task.sigma_min_closest") for r in selected])
-    edges = np.quantile(sigma, np.linspace(0.0, 1.0, SIGMA_BINS + 1))
-    edges = np.unique(edges)
-    if edges.size < 2:
-        return np.zeros(0), {}
-    curves = {}
-    centres = np.zeros(0)
-    for name in rows.controllers():
-        own = [r for r in selected if r["controller"] == name]
-        if not own:
-            continue
-        centres, medians, counts = binned_medians(
-            np.array([_value(r, "task.sigma_min_closest") for r in own]),
-            np.array([_value(r, metric) for r in own]),
-            edges,
-        )
-        curves[name] = (medians, counts)
-    return centres, curves
 
 
 def _sigma_table(rows: Rows, robot: str, metric: str) -> list[str]:

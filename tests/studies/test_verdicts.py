@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 from scipy import stats
@@ -17,18 +16,7 @@ from otmm_qp.studies.verdicts import (
     success_summary,
     task_groups,
 )
-
-
-def _row(name: str, index: int, success: bool) -> dict[str, Any]:
-    return {
-        "controller": name,
-        "robot": "r",
-        "generator": "g",
-        "generator_params": "{}",
-        "task_index": index,
-        "loop_mode": "clik",
-        "success": success,
-    }
+from tests.test_study_report import _synthetic as _row  # the renderer test's rows
 
 
 def test_the_pick_its_tie_and_the_closest_beaten_row() -> None:

@@ -312,3 +312,10 @@ def test_a_planted_function_level_import_closing_a_cycle_is_caught() -> None:
         "otmm_qp.studies.keys": "\nif TYPE_CHECKING:\n    from otmm_qp.studies.rows import load\n"
     }
     _check_module_cycles(_graph(typed))  # a type-only import is no dependency
+
+
+def test_the_study_report_renders_only() -> None:
+    """``studies/report.py`` computes no statistics: the verdicts and summaries it renders are
+    typed results of ``studies/verdicts.py``."""
+    imported = _all_imports((PACKAGE / "studies" / "report.py").read_text(encoding="utf-8"))
+    assert not {m for m in imported if m.startswith("otmm_qp.studies.statistics")}

@@ -24,7 +24,7 @@ def out_file(text: str | None) -> Path | None:
     if text == "" or "\x00" in text:
         raise ConfigError("--out", "must be a file name, e.g. --out verdict.md")
     path = Path(text)
-    if path.is_dir():
+    if text.endswith(("/", os.sep)) or path.is_dir():
         raise ConfigError("--out", f"{text!r:.60} is a folder; give a file name inside it")
     folder = path.parent
     if not folder.is_dir():

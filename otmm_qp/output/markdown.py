@@ -44,6 +44,12 @@ def _inline(text: str) -> str:
     return "".join(out)
 
 
+def heading_html(level: int, text: str) -> str:
+    """A Markdown heading of ``level`` (1 = ``#``) as HTML: ``<h(level + 2)>``, at most ``<h6>``."""
+    tag = min(level + 2, 6)
+    return f"<h{tag}>{_inline(text)}</h{tag}>"
+
+
 def markdown_to_html(markdown: str) -> str:
     """Minimal Markdown → HTML for claims files: headings, tables, lists, paragraphs."""
     out: list[str] = []
@@ -56,8 +62,7 @@ def markdown_to_html(markdown: str) -> str:
             continue
         heading = re.match(r"^(#{1,6}) (.*)", line)
         if heading:
-            level = min(len(heading.group(1)) + 2, 6)
-            out.append(f"<h{level}>{_inline(heading.group(2))}</h{level}>")
+            out.append(heading_html(len(heading.group(1)), heading.group(2)))
             i += 1
         elif line.lstrip().startswith("|"):
             block = []

@@ -21,10 +21,9 @@ from __future__ import annotations
 import base64
 import io
 import math
-import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,7 +33,9 @@ from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.columns import number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
+from otmm_qp.studies.document import Figure, Heading, Item, to_html, to_markdown
 from otmm_qp.studies.formatting import fmt as _fmt
+from otmm_qp.studies.formatting import interval as _interval
 from otmm_qp.studies.formatting import p_value as _p
 from otmm_qp.studies.formatting import percent as _pct
 from otmm_qp.studies.fronts import (
@@ -46,38 +47,31 @@ from otmm_qp.studies.fronts import (
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
-from otmm_qp.studies.statistics import (
-    ALPHA,
-    Interval,
-    PairedRates,
-    Ranked,
-    binned_medians,
-    bootstrap_interval,
-    paired_ranking,
-    paired_success,
-    significant_digits,
-    wilson_interval,
-)
 from otmm_qp.studies.verdicts import (
+    ALPHA,
     RESAMPLES,
     TaskGroup,
     bracket_summary,
     check_highlight,
     decide_group,
+    generator_rates,
     median_intervals,
     paired_for,
+    sigma_curves,
     study_fronts,
-    success_flags,
+    success_ranking,
+    success_summary,
     task_groups,
 )
 from otmm_qp.studies.verdicts import accuracy_verdict as decide_accuracy
+
+if TYPE_CHECKING:
+    from otmm_qp.studies.statistics import PairedRates, Ranked
 
 #: Metrics summarised by median + bootstrap interval (rows of the metric table).
 MEDIAN_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_MEDIANS))
 #: Metrics compared pairwise after the headline accuracy (rows of the metric table).
 PAIRED_METRICS: tuple[Metric, ...] = tuple(map(metric_row, STUDY_PAIRED))
-#: Bins of σ_min at closest approach (log-spaced edges).
-SIGMA_BINS = 6
 
 
 def _is_oracle(row: dict[str, Any]) -> bool:
@@ -93,14 +87,6 @@ _value = number
 
 def _task(row: dict[str, Any]) -> object:
     return task_of(row)
-
-
-def _interval(value: float | Interval, low: float = math.nan, high: float = math.nan) -> str:
-    """``value [low, high]``; endpoints with only the digits their Monte-Carlo error fixes."""
-    if isinstance(value, Interval):
-        digits = [significant_digits(e, value.mc_error) for e in (value.low, value.high)]
-        return f"{_fmt(value.value)} [{_fmt(value.low, digits[0])}, {_fmt(value.high, digits[1])}]"
-    return f"{_fmt(value)} [{_fmt(low)}, {_fmt(high)}]"
 
 
 def _median_metrics(rows: Rows) -> tuple[Metric, ...]:
@@ -124,54 +110,38 @@ def success_table(
     )
     lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
-    where = {"robot": robot} if robot else {}
-    for name in [*rows.controllers(), REFERENCE_NAME]:
-        selected = rows.select(controller=name, **where)
-        if not selected:
-            continue
-        n = len(selected)
-        errors = sum(1 for r in selected if r.get("status") == "error")
-        if name == REFERENCE_NAME:
+    for line in success_summary(rows, robot, [m.name for m in metrics]):
+        if line.rate is None:
             rate = "reference (not ranked)"
         else:
-            wins = sum(1 for r in selected if r["success"])
-            low, high = wilson_interval(wins, n)
-            rates[name] = (wins / n, low, high)
-            rate = f"{100 * wins / n:.1f} % [{100 * low:.1f}, {100 * high:.1f}]"
-        cells = [name, str(n), str(errors), rate]
-        for row in metrics:
-            values = np.array([_value(r, row.name) for r in selected])
-            cells.append(_interval(bootstrap_interval(values, seed=0, resamples=RESAMPLES)))
+            rates[line.controller] = (line.rate, line.low, line.high)
+            rate = f"{100 * line.rate:.1f} % [{100 * line.low:.1f}, {100 * line.high:.1f}]"
+        cells = [line.controller, str(line.episodes), str(line.errors), rate]
+        cells += [_interval(m) for m in line.medians]
         lines.append("| " + " | ".join(cells) + " |")
     return lines, rates
 
 
 def generator_table(rows: Rows) -> list[str]:
     """Markdown table: success rate [CI] per controller (rows) and robot/generator (columns)."""
-    groups = list(dict.fromkeys((r["robot"], r["generator"]) for r in rows.rows))
+    groups, table = generator_rates(rows)
     lines = [
         "| controller | " + " | ".join(f"{robot} {gen}" for robot, gen in groups) + " |",
         "|---|" + "---|" * len(groups),
     ]
-    for name in rows.controllers():
-        cells = []
-        for robot, gen in groups:
-            selected = rows.select(controller=name, robot=robot, generator=gen)
-            wins = sum(1 for r in selected if r["success"])
-            low, high = wilson_interval(wins, len(selected))
-            rate = 100 * wins / len(selected) if selected else math.nan
-            cells.append(f"{rate:.0f} % [{100 * low:.0f}, {100 * high:.0f}]")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    for name, cells in table.items():
+        shown = [f"{100 * r:.0f} % [{100 * low:.0f}, {100 * high:.0f}]" for r, low, high in cells]
+        lines.append(f"| {name} | " + " | ".join(shown) + " |")
     return lines
 
 
-def bracket_table(rows: Rows, robot: str) -> list[str]:
+def bracket_table(rows: Rows, robot: str) -> list[Item]:
     """The reference's bracket per kind of task (:func:`.verdicts.bracket_summary`)."""
     summary = bracket_summary(rows, robot)
     if not summary:
         return []
-    out = [
-        f"### Reference bracket on {robot}",
+    out: list[Item] = [
+        Heading(3, f"Reference bracket on {robot}"),
         "",
         "Per kind of task: the reference's labels (achievable: a stored path meets every "
         "tolerance within every limit; unachievable: its certified lower bound exceeds a "
@@ -263,7 +233,14 @@ def _ranking_line(ranking: list[Ranked], what: str, test: str) -> str:
 def render_markdown(
     config: StudyConfig, rows: Rows, figures: Sequence[str], highlight: str | None = None
 ) -> str:
-    """The Markdown report: overview, per robot verdicts → fronts → figure → causes → details.
+    """The Markdown report (:func:`document` rendered)."""
+    return to_markdown(document(config, rows, figures, highlight))
+
+
+def document(
+    config: StudyConfig, rows: Rows, figures: Sequence[str], highlight: str | None = None
+) -> list[Item]:
+    """The report: overview, per robot verdicts → fronts → figure → causes → details.
 
     Args:
         config: The study record.
@@ -273,24 +250,24 @@ def render_markdown(
     """
     check_highlight(rows, highlight)
     fronts = study_fronts(rows)
-    out = _overview(config, rows)
+    out: list[Item] = _overview(config, rows)
     out += _fronts_overview(fronts, highlight)
     for robot in rows.robots():
         own = [f for f in fronts if f.robot == robot]
         out += _robot_section(rows, robot, figures, own, highlight)
         out += _front_details(own, highlight)
     lines, _ = success_table(rows, None)
-    out += ["## All robots", "", *lines, ""]
+    out += [Heading(2, "All robots"), "", *lines, ""]
     out += [
-        "## Success rate by robot and generator (95 % Wilson CI)",
+        Heading(2, "Success rate by robot and generator (95 % Wilson CI)"),
         "",
         *generator_table(rows),
         "",
     ]
     rest = [f for f in figures if f not in {_pareto_path(r) for r in rows.robots()}]
     if rest:
-        out += ["## Figures", ""] + [f"![{f}]({f})" for f in rest] + [""]
-    return "\n".join(out)
+        out += [Heading(2, "Figures"), "", *[Figure(f, f) for f in rest], ""]
+    return out
 
 
 def _pareto_path(robot: str) -> str:
@@ -324,7 +301,7 @@ def _criteria_text(config: StudyConfig) -> str:
     )
 
 
-def _overview(config: StudyConfig, rows: Rows) -> list[str]:
+def _overview(config: StudyConfig, rows: Rows) -> list[Item]:
     """Report title, description, what was run, the criteria and the statistics used."""
     competitors = [r for r in rows.rows if not _is_oracle(r)]
     errors = sum(1 for r in competitors if r.get("status") == "error")
@@ -338,7 +315,7 @@ def _overview(config: StudyConfig, rows: Rows) -> list[str]:
         "accuracy is the max error."
     )
     return [
-        f"# Study {config.name}",
+        Heading(1, f"Study {config.name}"),
         "",
         config.description,
         "",
@@ -382,12 +359,12 @@ def _ours(highlight: str | None) -> Callable[[str], bool]:
     return ours
 
 
-def _front_details(fronts: Sequence[GroupFront], highlight: str | None) -> list[str]:
+def _front_details(fronts: Sequence[GroupFront], highlight: str | None) -> list[Item]:
     """Per group of one robot: every row's medians, place on the front and paired tests."""
-    out: list[str] = []
+    out: list[Item] = []
     for front in fronts:
         out += [
-            f"### {front.robot} / {front.group}: medians, front and paired tests",
+            Heading(3, f"{front.robot} / {front.group}: medians, front and paired tests"),
             "",
             *detail_table(front, _ours(highlight)),
             "",
@@ -401,23 +378,27 @@ def _robot_section(
     figures: Sequence[str],
     fronts: Sequence[GroupFront] = (),
     highlight: str | None = None,
-) -> list[str]:
+) -> list[Item]:
     """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
-    out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    out: list[Item] = [Heading(2, robot), "", Heading(3, "Verdict", box=True), ""]
+    out += [*_verdicts(rows, robot), ""]
     out += bracket_table(rows, robot)
     if fronts:
-        out += [f"### Pareto fronts on {robot}", "", *summary_table(fronts, _ours(highlight)), ""]
+        out += [
+            Heading(3, f"Pareto fronts on {robot}"),
+            "",
+            *summary_table(fronts, _ours(highlight)),
+        ]
+        out += [""]
     pareto = _pareto_path(robot)
     if pareto in figures:
-        out += [f"![Pareto: {robot}]({pareto})", ""]
+        out += [Figure(pareto, f"Pareto: {robot}"), ""]
     out += _cause_table(rows, robot)
     out += _worst_table(rows, robot)
-    out += ["### Success rates and medians", ""]
+    out += [Heading(3, "Success rates and medians"), ""]
     lines, rates = success_table(rows, robot)
     out += lines + [""]
-    flags = success_flags(rows.select(robot=robot))
-    tests = paired_success(flags)
-    ranking = paired_ranking({n: v[0] for n, v in rates.items()}, tests, higher_is_better=True)
+    ranking, tests = success_ranking(rows, robot, {n: v[0] for n, v in rates.items()})
     out += [_ranking_line(ranking, "success rate", "McNemar test"), ""]
     out += _mcnemar_table(tests, robot)
     for paired in (rows.accuracy_metric(), *(m.name for m in PAIRED_METRICS)):
@@ -427,10 +408,10 @@ def _robot_section(
     return out
 
 
-def _cause_table(rows: Rows, robot: str) -> list[str]:
+def _cause_table(rows: Rows, robot: str) -> list[Item]:
     """Episodes failing each criterion, per controller × generator (one can fail several)."""
-    out = [
-        f"### Failure causes on {robot}",
+    out: list[Item] = [
+        Heading(3, f"Failure causes on {robot}"),
         "",
         "Episodes failing each criterion (an episode can fail several): *error* = tolerance "
         "(achievable tasks) or graceful error bound (unachievable), *speed* = speed bound, "
@@ -457,11 +438,11 @@ def _cause_table(rows: Rows, robot: str) -> list[str]:
     return out
 
 
-def _worst_table(rows: Rows, robot: str) -> list[str]:
+def _worst_table(rows: Rows, robot: str) -> list[Item]:
     """Each controller's worst episode by the headline accuracy, with its drill-down id."""
     metric = rows.accuracy_metric()
-    out = [
-        f"### Worst episode of each controller on {robot} (by {metric})",
+    out: list[Item] = [
+        Heading(3, f"Worst episode of each controller on {robot} (by {metric})"),
         "",
         "`otmm-qp study show DIR --episode ID` prints an episode and writes a config that "
         "re-runs it.",
@@ -486,9 +467,9 @@ def _worst_table(rows: Rows, robot: str) -> list[str]:
     return out
 
 
-def _mcnemar_table(tests: list[PairedRates], robot: str) -> list[str]:
-    out = [
-        f"### Paired success on {robot} (exact McNemar on the same tasks)",
+def _mcnemar_table(tests: list[PairedRates], robot: str) -> list[Item]:
+    out: list[Item] = [
+        Heading(3, f"Paired success on {robot} (exact McNemar on the same tasks)"),
         "",
         "| A | B | tasks | A only | B only | both | p | Holm p | favours |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -504,10 +485,10 @@ def _mcnemar_table(tests: list[PairedRates], robot: str) -> list[str]:
     return out
 
 
-def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
+def _paired_table(rows: Rows, robot: str, metric: str) -> list[Item]:
     """Markdown table of the paired comparisons of ``metric`` on ``robot`` (Holm p < 0.05: *)."""
-    out = [
-        f"### Paired comparisons on {robot}: {metric} (lower wins)",
+    out: list[Item] = [
+        Heading(3, f"Paired comparisons on {robot}: {metric} (lower wins)"),
         "",
         "*favours*: the side the signed-rank sums favour (W⁻ > W⁺: A); ⚠ where the strict "
         "counts or the median difference point the other way.",
@@ -528,40 +509,13 @@ def _paired_table(rows: Rows, robot: str, metric: str) -> list[str]:
     return out
 
 
-def sigma_curves(
-    rows: Rows, robot: str, metric: str
-) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
-    """Binned medians of ``metric`` vs ``task.sigma_min_closest`` per controller on ``robot``."""
-    selected = [r for r in rows.select(robot=robot) if _value(r, "task.sigma_min_closest") > 0]
-    if not selected:
-        return np.zeros(0), {}
-    sigma = np.array([_value(r, "task.sigma_min_closest") for r in selected])
-    edges = np.quantile(sigma, np.linspace(0.0, 1.0, SIGMA_BINS + 1))
-    edges = np.unique(edges)
-    if edges.size < 2:
-        return np.zeros(0), {}
-    curves = {}
-    centres = np.zeros(0)
-    for name in rows.controllers():
-        own = [r for r in selected if r["controller"] == name]
-        if not own:
-            continue
-        centres, medians, counts = binned_medians(
-            np.array([_value(r, "task.sigma_min_closest") for r in own]),
-            np.array([_value(r, metric) for r in own]),
-            edges,
-        )
-        curves[name] = (medians, counts)
-    return centres, curves
-
-
-def _sigma_table(rows: Rows, robot: str, metric: str) -> list[str]:
+def _sigma_table(rows: Rows, robot: str, metric: str) -> list[Item]:
     """Markdown table of ``metric``'s binned medians vs σ_min at closest approach (or none)."""
     centres, curves = sigma_curves(rows, robot, metric)
     if not curves:
         return []
-    out = [
-        f"### {robot}: median {metric} vs σ_min at closest approach",
+    out: list[Item] = [
+        Heading(3, f"{robot}: median {metric} vs σ_min at closest approach"),
         "",
         "| controller | " + " | ".join(f"σ≈{_fmt(c, 2)}" for c in centres) + " |",
         "|---|" + "---|" * len(centres),
@@ -716,43 +670,19 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
 _STUDY_CSS = ".verdict{background:#f8fafc;border-left:4px solid #2b5797;padding:.2rem 1rem}"
 
 
-def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
-    """The self-contained HTML page: the Markdown rendered, figures embedded as base64.
+def render_html(config: StudyConfig, items: Sequence[Item], out: Path) -> str:
+    """The self-contained HTML page of the report's items, figures embedded as base64.
 
     Every name (controllers, robots, generators) reaches the page through
     :func:`otmm_qp.output.escape.escape` (in :func:`otmm_qp.output.markdown.markdown_to_html`).
     """
-    from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
+    from otmm_qp.output.markdown import REPORT_CSS
 
-    parts: list[str] = []
-    chunk: list[str] = []
-    in_verdict = False
-
-    def flush() -> None:
-        if chunk:
-            body = markdown_to_html("\n".join(chunk))
-            parts.append(f'<div class="verdict">{body}</div>' if in_verdict else body)
-            chunk.clear()
-
-    for line in markdown.splitlines():
-        image = re.fullmatch(r"!\[(.*)\]\((figures/[^)]+)\)", line.strip())
-        if image:
-            flush()
-            parts.append(_figure_html(out, image.group(2), image.group(1)))
-        elif line.startswith("#"):
-            flush()
-            in_verdict = line.strip() == "### Verdict"
-            chunk.append(line)
-            flush()
-        else:
-            chunk.append(line)
-    flush()
-    title = escape(f"Study {config.name}")
-    return (
-        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-        f"<title>{title}</title><style>{REPORT_CSS}{_STUDY_CSS}</style></head><body>\n"
-        + "\n".join(parts)
-        + "\n</body></html>\n"
+    return to_html(
+        items,
+        f"Study {config.name}",
+        REPORT_CSS + _STUDY_CSS,
+        lambda figure: _figure_html(out, figure.path, figure.caption),
     )
 
 
@@ -783,9 +713,9 @@ def write_study_report(out: Path, highlight: str | None = None) -> tuple[Path, P
     config, rows = load_rows(out)
     check_highlight(rows, highlight)
     figures = write_figures(out, rows)
-    markdown = render_markdown(config, rows, figures, highlight)
+    items = document(config, rows, figures, highlight)
     md_path = out / "study_report.md"
     html_path = out / "study_report.html"
-    atomic_write_text(md_path, markdown)
-    atomic_write_text(html_path, render_html(config, markdown, out))
+    atomic_write_text(md_path, to_markdown(items))
+    atomic_write_text(html_path, render_html(config, items, out))
     return html_path, md_path

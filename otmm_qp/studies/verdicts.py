@@ -16,6 +16,7 @@ through :func:`task_groups`. Nothing here formats text.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -29,18 +30,24 @@ from otmm_qp.studies.fronts import GroupFront, group_fronts
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, task_key, task_of
 from otmm_qp.studies.statistics import (
+    ALPHA,
     Interval,
     PairedRates,
     PairedResult,
     Ranked,
+    binned_medians,
     bootstrap_interval,
     paired_comparisons,
     paired_ranking,
     paired_success,
+    wilson_interval,
 )
 
 #: Bootstrap resamples of every interval (printed digits follow their Monte-Carlo error).
 RESAMPLES = 2000
+#: Bins of σ_min at closest approach (log-spaced edges).
+SIGMA_BINS = 6
+__all__ = ["ALPHA", "RESAMPLES", "SIGMA_BINS"]
 
 #: What a group's verdict says: no tasks, one controller only, nobody succeeds, no paired
 #: test separates the controllers, or a pick.
@@ -356,3 +363,104 @@ def check_highlight(rows: Rows, highlight: str | None, option: str = "--highligh
             option,
             f"no controller {highlight!r:.60} in the study; have: {', '.join(rows.controllers())}",
         )
+
+
+@dataclass(frozen=True)
+class SuccessLine:
+    """One row of the success table.
+
+    Attributes:
+        controller: The row (``oracle`` last).
+        episodes: Its episodes.
+        errors: Episodes that never ran (``status == "error"``).
+        rate: Success rate [0, 1] (None for the reference, which is not ranked).
+        low: Wilson 95 % interval, low end (NaN for the reference).
+        high: Its high end.
+        medians: Median [bootstrap 95 % interval] of each requested metric.
+    """
+
+    controller: str
+    episodes: int
+    errors: int
+    rate: float | None
+    low: float
+    high: float
+    medians: tuple[Interval, ...]
+
+
+def success_summary(rows: Rows, robot: str | None, metrics: Sequence[str]) -> list[SuccessLine]:
+    """Success rate (Wilson) and medians (bootstrap) of every row on ``robot`` (None: all)."""
+    out = []
+    where = {"robot": robot} if robot else {}
+    for name in [*rows.controllers(), REFERENCE_NAME]:
+        selected = rows.select(controller=name, **where)
+        if not selected:
+            continue
+        n = len(selected)
+        errors = sum(1 for r in selected if r.get("status") == "error")
+        rate, low, high = None, math.nan, math.nan
+        if name != REFERENCE_NAME:
+            wins = sum(1 for r in selected if r["success"])
+            low, high = wilson_interval(wins, n)
+            rate = wins / n
+        medians = tuple(
+            bootstrap_interval(
+                np.array([number(r, metric) for r in selected]), seed=0, resamples=RESAMPLES
+            )
+            for metric in metrics
+        )
+        out.append(SuccessLine(name, n, errors, rate, low, high, medians))
+    return out
+
+
+def generator_rates(
+    rows: Rows,
+) -> tuple[list[tuple[str, str]], dict[str, list[tuple[float, float, float]]]]:
+    """The (robot, generator) groups and ``controller → [(rate, Wilson low, high)]`` per group."""
+    groups = list(dict.fromkeys((r["robot"], r["generator"]) for r in rows.rows))
+    table: dict[str, list[tuple[float, float, float]]] = {}
+    for name in rows.controllers():
+        cells = []
+        for robot, gen in groups:
+            selected = rows.select(controller=name, robot=robot, generator=gen)
+            wins = sum(1 for r in selected if r["success"])
+            low, high = wilson_interval(wins, len(selected))
+            rate = wins / len(selected) if selected else math.nan
+            cells.append((rate, low, high))
+        table[name] = cells
+    return groups, table
+
+
+def success_ranking(
+    rows: Rows, robot: str, rates: dict[str, float]
+) -> tuple[list[Ranked], list[PairedRates]]:
+    """The McNemar ranking of ``robot``'s rows by success rate, and the tests (Holm)."""
+    tests = paired_success(success_flags(rows.select(robot=robot)))
+    return paired_ranking(rates, tests, higher_is_better=True), tests
+
+
+def sigma_curves(
+    rows: Rows, robot: str, metric: str
+) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """Binned medians of ``metric`` vs ``task.sigma_min_closest`` per controller on ``robot``."""
+    selected = [r for r in rows.select(robot=robot) if number(r, "task.sigma_min_closest") > 0]
+    if not selected:
+        return np.zeros(0), {}
+    sigma = np.array([number(r, "task.sigma_min_closest") for r in selected])
+    edges = np.quantile(sigma, np.linspace(0.0, 1.0, SIGMA_BINS + 1))
+    edges = np.unique(edges)
+    if edges.size < 2:
+        return np.zeros(0), {}
+    curves = {}
+    centres = np.zeros(0)
+    for name in rows.controllers():
+        own = [r for r in selected if r["controller"] == name]
+        if not own:
+            continue
+        centres, medians, counts = binned_medians(
+            np.array([number(r, "task.sigma_min_closest") for r in own]),
+            np.array([number(r, metric) for r in own]),
+            edges,
+        )
+        curves[name] = (medians, counts)
+    return centres, curves

@@ -53,6 +53,7 @@ def test_study_file_still_runs_and_run_is_the_same(tmp_path: Path) -> None:
         ("", "otmm-qp: error: --out: must be a file name"),
         ("DIR", "otmm-qp: error: --out: "),
         ("missing/x.md", "otmm-qp: error: --out: folder 'missing' does not exist"),
+        ("missing/", "otmm-qp: error: --out: 'missing/' is a folder; give a file name inside it"),
         ("/proc/x.md", "otmm-qp: error: --out: "),
     ],
 )

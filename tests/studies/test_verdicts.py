@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
+import pytest
 from scipy import stats
 
 from otmm_qp.studies.report import load_rows
@@ -12,20 +12,11 @@ from otmm_qp.studies.verdicts import (
     TaskGroup,
     accuracy_verdict,
     decide_group,
+    generator_rates,
+    success_summary,
     task_groups,
 )
-
-
-def _row(name: str, index: int, success: bool) -> dict[str, Any]:
-    return {
-        "controller": name,
-        "robot": "r",
-        "generator": "g",
-        "generator_params": "{}",
-        "task_index": index,
-        "loop_mode": "clik",
-        "success": success,
-    }
+from tests.test_study_report import _synthetic as _row  # the renderer test's rows
 
 
 def test_the_pick_its_tie_and_the_closest_beaten_row() -> None:
@@ -74,3 +65,24 @@ def test_groups_and_accuracy_of_a_stored_study(small_study: Path) -> None:
     assert accuracy.relative and accuracy.top and set(accuracy.top) <= {"pinv", "dls"}
     best = min(m.value for m in accuracy.medians.values())
     assert any(accuracy.medians[name].value == best for name in accuracy.top)
+
+
+def test_success_summary_and_generator_rates(small_study: Path) -> None:
+    _, rows = load_rows(small_study)
+    lines = success_summary(rows, "planar2", ["max_error"])
+    assert [line.controller for line in lines] == ["pinv", "dls", "oracle"]
+    for line in lines:
+        own = [r for r in rows.rows if r["controller"] == line.controller]
+        assert line.episodes == len(own) == 3
+        if line.controller == "oracle":
+            assert line.rate is None
+            continue
+        wins = sum(bool(r["success"]) for r in own)
+        assert line.rate == wins / 3
+        ci = stats.binomtest(wins, 3).proportion_ci(method="wilson")
+        assert (line.low, line.high) == pytest.approx((ci.low, ci.high), abs=1e-12)
+        (median,) = line.medians
+        assert median.low <= median.value <= median.high
+    groups, table = generator_rates(rows)
+    assert groups == [("planar2", "near_singular"), ("planar2", "beyond_reach")]
+    assert set(table) == {"pinv", "dls"} and all(len(cells) == 2 for cells in table.values())

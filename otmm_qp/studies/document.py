@@ -1,0 +1,105 @@
+"""The study report as a small document model, rendered once to Markdown and once to HTML.
+
+A document is a list of items: Markdown text lines (paragraphs, lists, tables), a
+:class:`Heading` (a ``box`` heading puts the text up to the next heading in a verdict box)
+and a :class:`Figure`. :func:`to_markdown` writes ``study_report.md``; :func:`to_html`
+renders the same items for ``study_report.html`` (figures embedded by the caller's
+``figure`` function, the page from a Jinja2 template) — no pattern matching over Markdown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import jinja2
+
+from otmm_qp.output.escape import escape
+from otmm_qp.output.markdown import heading_html, markdown_to_html
+
+
+@dataclass(frozen=True)
+class Heading:
+    """A section heading.
+
+    Attributes:
+        level: 1 (``#``, the title) to 6.
+        text: The heading (inline Markdown).
+        box: It and the text after it, up to the next heading, are a verdict box.
+    """
+
+    level: int
+    text: str
+    box: bool = False
+
+    def markdown(self) -> str:
+        """``## text``."""
+        return f"{'#' * self.level} {self.text}"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A figure of the study folder.
+
+    Attributes:
+        path: Its path relative to the study folder (``figures/...png``).
+        caption: Its caption.
+    """
+
+    path: str
+    caption: str
+
+    def markdown(self) -> str:
+        """``![caption](path)``."""
+        return f"![{self.caption}]({self.path})"
+
+
+#: One item of a document.
+Item = str | Heading | Figure
+
+_PAGE = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_string(
+    '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+    "<title>{{ title }}</title><style>{{ css }}</style></head><body>\n"
+    "{{ body }}\n</body></html>\n"
+)
+
+
+def to_markdown(items: Sequence[Item]) -> str:
+    """The Markdown of a document (one line per text item)."""
+    return "\n".join(item if isinstance(item, str) else item.markdown() for item in items)
+
+
+def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figure], str]) -> str:
+    """The self-contained HTML page of a document.
+
+    Args:
+        items: The document.
+        title: The page title (escaped here).
+        css: The style sheet.
+        figure: The HTML of a figure (e.g. embedded as base64), or ``""`` to leave it out.
+    """
+    parts: list[str] = []
+    text: list[str] = []
+    boxed = False
+    if items and items[-1] == "":  # the Markdown's final newline, not an empty paragraph
+        items = items[:-1]
+
+    def flush() -> None:
+        if text:
+            body = markdown_to_html("\n".join(text))
+            parts.append(f'<div class="verdict">{body}</div>' if boxed else body)
+            text.clear()
+
+    for item in items:
+        if isinstance(item, str):
+            text.append(item)
+            continue
+        flush()
+        if isinstance(item, Heading):
+            boxed = item.box
+            html = heading_html(item.level, item.text)
+            parts.append(f'<div class="verdict">{html}</div>' if boxed else html)
+        else:
+            parts.append(figure(item))
+    flush()
+    return _PAGE.render(title=escape(title), css=css, body="\n".join(parts))

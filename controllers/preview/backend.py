@@ -35,7 +35,7 @@ from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_para
 from ..qp.box_backend import SOLVER, SOLVER_TOL, BoxQpBackend
 from ..qp.formulation import clip_into_box
 from ..qp.solvers import QpProblem, Solution
-from .formulation import PreviewProblem, PreviewWeights
+from .formulation import BoolArray, PreviewProblem, PreviewWeights
 from .knots import KnotGrid
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
 
@@ -85,8 +85,8 @@ class PreviewBackend(BoxQpBackend):
             acceleration limit when one is listed. None: velocity and position (gain 0.5).
         infeasible_policy: ``raise``, ``hold`` or ``dls`` (the nominal's first velocity
             clipped into the relaxed box), as the ``qp`` backend.
-        fast_path: Skip the solver when the unconstrained minimiser (one Cholesky) meets every
-            constraint — then it is the QP's optimum.
+        fast_path: Skip the solver when the last step's active bounds, or none, give a point
+            meeting the KKT conditions (one Cholesky) — then it is the QP's optimum.
 
     Raises:
         ParameterError: A parameter out of range (at construction), or a knot layout that
@@ -192,9 +192,10 @@ class PreviewBackend(BoxQpBackend):
         return None if trajectory is None else TrajectoryTargets(trajectory, self.grid.taus)
 
     def reset(self) -> None:
-        """Forget the plan, the clock and the solver's warm start."""
+        """Forget the plan, the clock, the active-set guess and the solver's warm start."""
         super().reset()
         self._k = 0
+        self._active: tuple[BoolArray, BoolArray] | None = None
         if hasattr(self, "_plan"):
             self._plan[:] = 0.0
 
@@ -254,13 +255,32 @@ class PreviewBackend(BoxQpBackend):
         return self._output(qdot, status, problem, solution, self._plan, taus)
 
     def _solve(self, problem: QpProblem) -> Solution:
-        """The fast path (the unconstrained minimiser, when feasible), else the session."""
+        """The fast paths, else the session.
+
+        First the last step's active bounds advanced by one segment, as the plan is, then as
+        they were (:meth:`PreviewProblem.with_active_bounds`, KKT conditions checked), then
+        the unconstrained minimiser; the solver only when none is the optimum. The active
+        bounds of whatever is accepted are the next guess.
+        """
+        qp = self._qp
         if self.fast_path:
-            x = self._qp.unconstrained()
+            guess = self._active
+            if guess is not None and (guess[0].any() or guess[1].any()):
+                nv = self.robot.nv
+                for candidate in (tuple(_advanced(mask, nv) for mask in guess), guess):
+                    x = qp.with_active_bounds(*candidate)
+                    if x is not None:
+                        self._active = qp.active_bounds(x)
+                        return Solution(x, True, "last active set optimal")
+            x = qp.unconstrained()
             if x is not None:
+                self._active = None
                 return Solution(x, True, "unconstrained minimiser feasible")
         self.session.load(problem)
-        return self.session.solve()
+        solution = self.session.solve()
+        if solution.x is not None:
+            self._active = qp.active_bounds(solution.x)
+        return solution
 
     def _linearise(
         self, state: KinematicState, theta: FloatArray, nominal: FloatArray
@@ -293,6 +313,13 @@ class PreviewBackend(BoxQpBackend):
     ) -> BackendOutput:
         record = PreviewStep(self.box.bounds, problem, solution, plan, taus)
         return BackendOutput(qdot, status, self._damping, details=record)
+
+
+def _advanced(mask: BoolArray, nv: int) -> BoolArray:
+    """A per-variable mask of the plan ``(K·nv,)`` advanced by one segment (the last kept)."""
+    moved = mask.copy()
+    moved[:-nv] = mask[nv:]
+    return moved
 
 
 class CausalPreviewBackend(PreviewBackend):

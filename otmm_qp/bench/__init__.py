@@ -1,4 +1,5 @@
-"""Per-step cost of otmm-qp pipelines against pink, mink and Drake, measured side by side.
+"""Per-step cost of otmm-qp pipelines against pink, mink, Drake and the floor (kinematics +
+Jacobian + one SVD, :mod:`otmm_qp.bench.floor`), measured side by side.
 
 :func:`run_bench` is what ``otmm-qp bench`` and ``benchmarks/bench_step.py`` call.
 """

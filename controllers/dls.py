@@ -35,7 +35,6 @@ class DampedLeastSquaresBackend(Backend):
     def __init__(self, damping: float = 0.05) -> None:
         check_params(self, locals())
         self.damping = float(damping)
-        self._mu = self.damping**2
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Attach the robot; allocate the step's SVD buffers (:func:`svd_work`)."""
@@ -47,5 +46,5 @@ class DampedLeastSquaresBackend(Backend):
     ) -> BackendOutput:
         """Damped solution [rad/s], shape ``(nv,)``."""
         return self.unconstrained_output(
-            damped_least_squares(state, xdot, self._mu, self._work), self.damping
+            damped_least_squares(state, xdot, self.damping**2, self._work), self.damping
         )

@@ -125,6 +125,24 @@ def test_bench_strategies_runs_tiny() -> None:
     assert {"otmm+pinv", "otmm-directional+pinv", "jparse", "sns", "manipulability"} <= rows
 
 
+def test_bench_instructions_runs_tiny() -> None:
+    """The phases of the instruction count run (without valgrind: counting takes minutes)."""
+    script = str(ROOT / "benchmarks" / "bench_instructions.py")
+    done = subprocess.run(
+        [sys.executable, script, "--steps", "10", "--passes", "1", "--no-valgrind"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "ran 6 phases x 1 passes x 10 states" in done.stdout
+    refused = subprocess.run(
+        [sys.executable, script, "--steps", "3"], capture_output=True, text=True, check=False
+    )
+    assert refused.returncode == 2 and "--steps must be >= 10" in refused.stderr
+
+
 def test_every_benchmark_script_and_example_is_tested() -> None:
     # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py;
     # bench_reference: test_studies_oracle.py.
@@ -137,6 +155,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_study.py",
         "bench_reference.py",
         "bench_plant.py",  # test_plant_runs.py
+        "bench_instructions.py",
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

@@ -66,7 +66,11 @@ def _controller(
 def _step_peaks(
     controller: Controller, states: list[KinematicState], commands: list[FloatArray]
 ) -> tuple[list[int], Counter[str]]:
-    """Per-step peak of traced memory above the memory live before the step [bytes]."""
+    """Per-step peak of traced memory above the memory live before the step [bytes].
+
+    ``tracemalloc`` traces every thread, so a thread left running by another test could add
+    its allocations to a step's window: each step's figure is the least of three passes.
+    """
 
     def run_pass(peaks: list[int] | None) -> Counter[str]:
         seen: Counter[str] = Counter()
@@ -85,13 +89,15 @@ def _step_peaks(
         return seen
 
     run_pass(None)  # warm-up: every path once
-    peaks: list[int] = []
+    passes: list[list[int]] = [[], [], []]
     tracemalloc.start()
     try:
-        seen = run_pass(peaks)
+        seen = Counter[str]()
+        for peaks in passes:
+            seen = run_pass(peaks)
     finally:
         tracemalloc.stop()
-    return peaks, seen
+    return [min(values) for values in zip(*passes, strict=True)], seen
 
 
 @pytest.fixture(scope="module")
@@ -137,19 +143,25 @@ def test_a_step_allocates_only_what_it_returns(
 def test_steps_retain_nothing(
     panda_path: tuple[PinocchioArm, list[KinematicState], list[FloatArray]],
 ) -> None:
-    """Memory live after a pass equals memory live before it: no per-step growth or cache."""
+    """Memory live after 3 passes (180 steps) equals memory live before: no per-step growth.
+
+    The least of three such measurements (another test's leftover thread may allocate while
+    ``tracemalloc`` traces).
+    """
     robot, states, commands = panda_path
     controller = _controller("qp", {"solver": "daqp"}, True, robot)
     _step_peaks(controller, states, commands)  # warm-up included
-    tracemalloc.start()
-    try:
-        before = tracemalloc.get_traced_memory()[0]
-        for _ in range(3):
-            qdot_prev = np.zeros(robot.nv)
-            for state, command in zip(states, commands, strict=True):
-                qdot_prev = controller.step(state, command, qdot_prev).qdot
-        del qdot_prev
-        after = tracemalloc.get_traced_memory()[0]
-    finally:
-        tracemalloc.stop()
-    assert after - before <= 1024, after - before  # 3 × 60 steps: any per-step leak shows
+    growth = []
+    for _ in range(3):
+        tracemalloc.start()
+        try:
+            before = tracemalloc.get_traced_memory()[0]
+            for _ in range(3):
+                qdot_prev = np.zeros(robot.nv)
+                for state, command in zip(states, commands, strict=True):
+                    qdot_prev = controller.step(state, command, qdot_prev).qdot
+            del qdot_prev
+            growth.append(tracemalloc.get_traced_memory()[0] - before)
+        finally:
+            tracemalloc.stop()
+    assert min(growth) <= 1024, growth  # a leak of one small array per step is 30 KB here

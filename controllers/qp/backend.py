@@ -24,7 +24,7 @@ from otmm_qp.validation import (
 )
 
 from .box_backend import SOLVER, SOLVER_TOL, BoxQpBackend, QpStep
-from .formulation import BIG, QpFormulation, QpProblem, clip_into_box
+from .formulation import BIG, QpFormulation, QpProblem, clip_into_box, diagonal_view
 from .posture import POSTURE_MOVED, QpPosture
 from .solvers import QpSession, available_solvers, make_session
 
@@ -140,6 +140,7 @@ class QpBackend(BoxQpBackend):
         self._box_in_problem = bool(np.all(static.upper <= BIG) and np.all(static.lower >= -BIG))
         box = self.box.bounds if self._box_in_problem else None
         self._data = QpProblem.allocate(robot.nv, box=box)
+        self._diagonal = diagonal_view(self._data.P)
         self._row_data = QpProblem.allocate(robot.nv, len(self.limits.rows))
         self._work = svd_work(robot)
 
@@ -194,7 +195,9 @@ class QpBackend(BoxQpBackend):
             if status is not None:
                 return candidate, status, QpStep(bounds)
         box = None if self._box_in_problem else bounds  # None: already in _data
-        data = self.formulation.build(state.task_jacobian, xdot, posture, box, self._data)
+        data = self.formulation.build(
+            state.task_jacobian, xdot, posture, box, self._data, self._diagonal
+        )
         return self._solve(inputs, self.session, data, ())
 
     def _solve(

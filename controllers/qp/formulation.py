@@ -34,6 +34,7 @@ __all__ = [
     "active_bound",
     "build_qp",
     "clip_into_box",
+    "diagonal_view",
 ]
 
 
@@ -107,9 +108,12 @@ class QpFormulation:
         posture: FloatArray | None,
         bounds: FloatArray | None,
         out: QpProblem,
+        diagonal: FloatArray | None = None,
     ) -> QpProblem:
         """The QP of :math:`f` under the box ``bounds`` (2, nv) into ``out`` (:func:`build_qp`)."""
-        return build_qp(task_jacobian, xdot, self.mu, bounds, self.posture_weight, posture, out)
+        return build_qp(
+            task_jacobian, xdot, self.mu, bounds, self.posture_weight, posture, out, diagonal
+        )
 
 
 def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | None:
@@ -184,6 +188,11 @@ def clip_into_box(x: FloatArray, bounds: FloatArray, tol: float) -> tuple[FloatA
     return np.array(values), active
 
 
+def diagonal_view(matrix: FloatArray) -> FloatArray:
+    """A writeable view on the diagonal of a C-contiguous square ``matrix`` (n, n), shape (n,)."""
+    return matrix.reshape(-1)[:: matrix.shape[0] + 1]
+
+
 def build_qp(
     task_jacobian: FloatArray,
     xdot: FloatArray,
@@ -192,6 +201,7 @@ def build_qp(
     posture_weight: float = 0.0,
     posture_velocity: FloatArray | None = None,
     out: QpProblem | None = None,
+    diagonal: FloatArray | None = None,
 ) -> QpProblem:
     r"""The differential-IK QP.
 
@@ -214,6 +224,8 @@ def build_qp(
         posture_velocity: ``q̇_p = g_p(θ_nominal − θ)`` [rad/s], shape ``(nv,)``.
         out: Problem whose ``P``, ``q``, ``lb``, ``ub`` are overwritten; a new box-only
             problem when None.
+        diagonal: A view on the diagonal of ``out.P``, shape ``(nv,)``
+            (:func:`diagonal_view`, made once by a caller that reuses ``out``); None: made here.
 
     Raises:
         ParameterError: ``bounds`` is None without ``out``.
@@ -226,10 +238,11 @@ def build_qp(
     hessian, linear = out.P, out.q
     # ndarray.dot rather than matmul or np.dot: the least call overhead on arm-sized arrays.
     task_jacobian.T.dot(task_jacobian, out=hessian)
-    diagonal = hessian.reshape(-1)[:: nv + 1]  # a view on the diagonal
-    np.add(diagonal, damping + posture_weight, out=diagonal)
+    if diagonal is None:
+        diagonal = diagonal_view(hessian)
+    np.add(diagonal, damping + posture_weight, diagonal)
     xdot.dot(task_jacobian, out=linear)
-    np.negative(linear, out=linear)
+    np.negative(linear, linear)
     if posture_weight > 0.0 and posture_velocity is not None:
         linear -= posture_weight * posture_velocity
     if bounds is not None:

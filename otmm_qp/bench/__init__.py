@@ -1,5 +1,6 @@
-"""Per-step cost of otmm-qp pipelines against pink, mink and Drake, measured side by side.
+"""Per-step cost of otmm-qp pipelines against pink, mink, Drake and the floor, side by side.
 
+The floor is the arm's kinematics + Jacobian + one SVD (:mod:`otmm_qp.bench.floor`).
 :func:`run_bench` is what ``otmm-qp bench`` and ``benchmarks/bench_step.py`` call.
 """
 

@@ -65,7 +65,7 @@ def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
     assert all(g.best_on(1) == "dls_error" for g in fronts.values())  # the calm end
     assert fronts["singular crossings"].best_on(0) == "OTMM-directional+pinv"
     assert fronts["reachable random"].best_on(0) == "sns"
-    for kind in ("beyond-reach motion", "limit-bound motion", "held targets"):
+    for kind in ("undecided", "limit-bound motion", "held targets"):
         g = fronts[kind]
         accurate, calm = g.row(str(g.best_on(0))), g.row("dls_error")
         assert accurate is not None and calm is not None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -14,6 +14,9 @@ from otmm_qp.filters.task_filter import FilterReport, TaskFilter
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import DIVERGENCE_SPEED, Status, classify, speed_limit_thresholds
+
+if TYPE_CHECKING:
+    from otmm_qp.plants.declaration import PlantDeclaration
 
 
 class ControllerOutput(NamedTuple):
@@ -103,6 +106,10 @@ class Controller:
         check = not self.backend.enforces_limits and bool(np.isfinite(limits).any())
         self._speed_thresholds = speed_limit_thresholds(limits) if check else None
         self.reset()
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand what the run's plant declares about itself to the backend (before :meth:`bind`)."""
+        self.backend.declare_plant(declaration)
 
     def reset(self) -> None:
         """Reset filters and backend state."""

@@ -17,6 +17,7 @@ from typing import Any
 
 from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.plants.declaration import PlantDeclaration, combine
 from otmm_qp.plants.ideal import IdealPlant
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -71,6 +72,10 @@ class PlantChain:
         for stage in self._commands:
             qdot = stage.command(qdot)
         return self.body.advance(q, qdot)
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        """What the stages declare, combined (:func:`~otmm_qp.plants.declaration.combine`)."""
+        return combine(stage.declares(dt) for stage in self.stages)
 
     def label(self) -> str:
         """``ideal``, or the stage labels joined by ``+`` (``lag(tau=0.02)+delay(steps=1)``)."""

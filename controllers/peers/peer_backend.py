@@ -55,6 +55,7 @@ INSTALL_HINTS: dict[str, str] = {
     "pink": 'pip install "otmm-qp[peers]"  (or: pip install pin-pink)',
     "mink": 'pip install "otmm-qp[peers]"  (or: pip install mink mujoco)',
     "drake": 'pip install "otmm-qp[peers]"  (or: pip install drake)',
+    "oink": 'pip install "otmm-qp[peers]"  (or: pip install roboplan-oink)',
 }
 
 

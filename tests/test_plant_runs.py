@@ -195,3 +195,26 @@ def test_shipped_plants_study_plans_and_runs_a_slice(tmp_path: Path) -> None:
     assert len(rows) == 9 and all(r["status"] in ("ok", "stopped") for r in rows)
     mujoco = [r for r in rows if r["plant"] in ("mujoco", "franka_fci")]
     assert all(0.0 < r["peak_torque_ratio"] <= 1.0 for r in mujoco)
+
+
+def test_limit_cost_pairs_qp_with_todays_box_per_plant() -> None:
+    """Violations, success and the paired tests of qp against qp-box on the same tasks."""
+    from otmm_qp.studies.plant_headline import limit_cost
+
+    rows = []
+    for i in range(12):
+        task = {"robot": "ur5", "generator": "g", "task_index": i}
+        # lag: qp keeps the limits and succeeds on 8 tasks the box fails; errors lower on all
+        rows.append({**task, "controller": "qp@lag", "plant": "lag", "success": True,
+                     "max_error": 0.01, "position_violations": 0})  # fmt: skip
+        rows.append({**task, "controller": "qp-box@lag", "plant": "lag", "success": i >= 8,
+                     "max_error": 0.02 + i, "position_violations": 3 if i < 5 else 0})  # fmt: skip
+        rows.append({**task, "controller": "pinv@lag", "plant": "lag", "success": False,
+                     "max_error": 1.0, "position_violations": 9})  # fmt: skip
+    table = limit_cost(rows)
+    line = next(x for x in table.splitlines() if x.startswith("| lag |"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[1] == "0 / 5" and cells[2] == "100 / 33"
+    assert cells[3].startswith("8 / 0, ") and float(cells[3].split(", ")[1]) < 0.01
+    assert cells[4].startswith("12 / 0 / 0, ")
+    assert limit_cost([r for r in rows if not r["controller"].startswith("qp-box")]) == ""

@@ -11,6 +11,11 @@ From the episode rows of a study with a ``plants`` axis (controllers named
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
 
+When the study has both ``qp`` and ``qp-box`` (``qp`` with today's position box), a second
+table pairs them per plant on the same tasks (:func:`limit_cost`): episodes with a position-limit
+violation, success rates with the exact McNemar test, and the paired Wilcoxon test of the max
+error, both Holm-corrected over the plants.
+
 Run as ``python -m otmm_qp.studies.plant_headline RESULTS_DIR`` (prints Markdown).
 """
 
@@ -25,14 +30,15 @@ import numpy as np
 from scipy import stats
 
 from otmm_qp.studies.oracle import REFERENCE_NAME
-from otmm_qp.studies.statistics import holm, paired_test
+from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
 from otmm_qp.studies.storage import read_episodes
 
-__all__ = ["headline", "main"]
+__all__ = ["headline", "limit_cost", "main"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
     "max_joint_speed", "filter_switches", "peak_torque_ratio", "saturated_steps",
+    "position_violations",
 ]  # fmt: skip
 
 
@@ -117,6 +123,47 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     return "\n".join(lines) + "\n"
 
 
+def limit_cost(rows: list[dict[str, Any]], new: str = "qp", old: str = "qp-box") -> str:
+    """Markdown: ``new`` against ``old`` per plant on the same tasks (see the module)."""
+    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
+    by: dict[tuple[str, str], dict[Any, dict[str, Any]]] = {}
+    for row in rows:
+        base = str(row["controller"]).rsplit("@", 1)[0]
+        if base in (new, old):
+            by.setdefault((str(row["plant"]), base), {})[key(row)] = row
+    plants = [p for p in dict.fromkeys(p for p, _ in by) if (p, new) in by and (p, old) in by]
+    if not plants:
+        return ""
+    rates, errors = [], []
+    for p in plants:
+        tasks = sorted(set(by[p, new]) & set(by[p, old]), key=str)
+        a = [by[p, new][t] for t in tasks]
+        b = [by[p, old][t] for t in tasks]
+        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
+        rates.append(mcnemar_exact(new, old, success[0], success[1]))
+        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
+        errors.append(paired_test(new, old, maxima[0], maxima[1]))
+    p_rates = holm([r.p_value for r in rates])
+    p_errors = holm([t.p_value for t in errors])
+    lines = [
+        f"| plant | episodes with a position-limit violation: {new} / {old} | success %: "
+        f"{new} / {old} | tasks only {new} / only {old} succeeds, Holm p | max error: tasks "
+        f"{new} lower / tied / higher, Holm p |",
+        "|---|---:|---:|---|---|",
+    ]
+    for i, p in enumerate(plants):
+        pair = (list(by[p, new].values()), list(by[p, old].values()))
+        violations = [sum((r["position_violations"] or 0) > 0 for r in x) for x in pair]
+        percent = [100.0 * float(np.mean([bool(r["success"]) for r in x])) for x in pair]
+        r, t = rates[i], errors[i]
+        lines.append(
+            f"| {p} | {violations[0]} / {violations[1]} | {percent[0]:.0f} / {percent[1]:.0f} | "
+            f"{r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
+            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m otmm_qp.studies.plant_headline DIR``: print the headline; 2 on bad input."""
     args = sys.argv[1:] if argv is None else argv
@@ -128,7 +175,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"otmm-qp: error: {args[0]}: not a plants study (no episode rows with a plant)",
               file=sys.stderr)  # fmt: skip
         return 2
-    print(headline(table.to_pylist()), end="")
+    rows = table.to_pylist()
+    print(headline(rows), end="")
+    cost = limit_cost(rows)
+    if cost:
+        print("\n" + cost, end="")
     return 0
 
 

@@ -13,6 +13,7 @@ from otmm_qp.backends.backend import Backend, BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import LimitBox, LimitSpec, make_limits
 from otmm_qp.limits.options import LIMITS, removed_limit_keys
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -120,10 +121,18 @@ class SnsBackend(Backend):
         self.box = LimitBox(self.limits.boxes)
         self.rcond = float(rcond)
 
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand the plant's declaration to the limits (read at :meth:`bind`)."""
+        self.box.declare_plant(declaration)
+
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the limits."""
         super().bind(robot, dt)
         self.box.bind(robot, dt)
+
+    def reset(self) -> None:
+        """Forget the limits' per-step state (a new run)."""
+        self.box.reset()
 
     def bounds(
         self, state: KinematicState, qdot_prev: FloatArray | None = None

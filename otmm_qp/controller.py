@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -22,6 +22,9 @@ from otmm_qp.status import (
     speed_limit_thresholds,
 )
 from otmm_qp.trajectories.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from otmm_qp.plants.declaration import PlantDeclaration
 
 
 class ControllerOutput(NamedTuple):
@@ -132,6 +135,10 @@ class Controller:
         self._quiet_squared = quiet_speed_squared(self._speed_thresholds, self._divergence_speed)
         self._speed_work = SpeedWork(robot.nv)
         self.reset()
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand what the run's plant declares about itself to the backend (before :meth:`bind`)."""
+        self.backend.declare_plant(declaration)
 
     def reset(self) -> None:
         """Reset filters and backend state."""

@@ -19,6 +19,7 @@ from otmm_qp.limits import (
     Box,
     LimitBox,
     PositionLimit,
+    PredictedPositionLimit,
     SingularityBarrier,
     VelocityLimit,
     conflict,
@@ -132,7 +133,7 @@ def test_the_limits_order_does_not_change_the_run() -> None:
     barrier = make_limits([{"type": "singularity_barrier", "sigma_safe": 0.01}])
     assert isinstance(barrier.rows[0], SingularityBarrier) and barrier.rows[0].sigma_safe == 0.01
     default = make_limits(None, default_gain=1.0)
-    assert [type(limit) for limit in default.boxes] == [VelocityLimit, PositionLimit]
+    assert [type(limit) for limit in default.boxes] == [VelocityLimit, PredictedPositionLimit]
     assert default.boxes[1].gain == 1.0  # type: ignore[attr-defined]
 
 

@@ -174,14 +174,18 @@ def test_shipped_plants_study_plans_and_runs_a_slice(tmp_path: Path) -> None:
 
     shipped = load_study(ROOT / "configs/studies/plants.yaml")
     controllers = expand_controllers(shipped)
-    assert len(controllers) == 24 and sum(g.count for g in shipped.generators) == 20
+    assert len(controllers) == 8 * 18 and sum(g.count for g in shipped.generators) == 20
+    sweep = {f"lag{t}ms-delay{d}" for t in (2, 10, 30) for d in (1, 2, 4)}
     assert {c.name.rsplit("@", 1)[1] for c in controllers} == {
-        "ideal", "lag20ms-delay1", "noise1e-4", "mujoco",
+        "ideal", "lag20ms-delay1", "noise1e-4", "mujoco", "encoder-1q", "encoder-3q",
+        "franka_fci", "ur_e_series", "ur_cb3", *sweep,
     }  # fmt: skip
     data = yaml.safe_load((ROOT / "configs/studies/plants.yaml").read_text(encoding="utf-8"))
     data["robots"] = data["robots"][1:]  # Panda
     data["generators"] = [dict(data["generators"][0], count=1)]
-    data["controllers"] = data["controllers"][2:5]  # qp, OTMM+pinv, OTMM+qp
+    names = ("qp", "OTMM+pinv", "OTMM+qp")
+    data["controllers"] = [c for c in data["controllers"] if c["name"] in names]
+    data["plants"] = [p for p in data["plants"] if p["name"] in ("ideal", "mujoco", "franka_fci")]
     config = tmp_path / "slice.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
     out = tmp_path / "slice"
@@ -189,6 +193,29 @@ def test_shipped_plants_study_plans_and_runs_a_slice(tmp_path: Path) -> None:
     stored = read_episodes(out).to_pylist()  # type: ignore[union-attr]
     rows = [r for r in stored if r["controller"] != "oracle"]
     assert len(stored) == len(rows) + 1  # one offline reference for the one task
-    assert len(rows) == 12 and all(r["status"] in ("ok", "stopped") for r in rows)
-    mujoco = [r for r in rows if r["plant"] == "mujoco"]
+    assert len(rows) == 9 and all(r["status"] in ("ok", "stopped") for r in rows)
+    mujoco = [r for r in rows if r["plant"] in ("mujoco", "franka_fci")]
     assert all(0.0 < r["peak_torque_ratio"] <= 1.0 for r in mujoco)
+
+
+def test_limit_cost_pairs_qp_with_todays_box_per_plant() -> None:
+    """Violations, success and the paired tests of qp against qp-box on the same tasks."""
+    from otmm_qp.studies.plant_headline import limit_cost
+
+    rows = []
+    for i in range(12):
+        task = {"robot": "ur5", "generator": "g", "task_index": i}
+        # lag: qp keeps the limits and succeeds on 8 tasks the box fails; errors lower on all
+        rows.append({**task, "controller": "qp@lag", "plant": "lag", "success": True,
+                     "max_error": 0.01, "position_violations": 0})  # fmt: skip
+        rows.append({**task, "controller": "qp-box@lag", "plant": "lag", "success": i >= 8,
+                     "max_error": 0.02 + i, "position_violations": 3 if i < 5 else 0})  # fmt: skip
+        rows.append({**task, "controller": "pinv@lag", "plant": "lag", "success": False,
+                     "max_error": 1.0, "position_violations": 9})  # fmt: skip
+    table = limit_cost(rows)
+    line = next(x for x in table.splitlines() if x.startswith("| lag |"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[1] == "0 / 5" and cells[2] == "100 / 33"
+    assert cells[3].startswith("8 / 0, ") and float(cells[3].split(", ")[1]) < 0.01
+    assert cells[4].startswith("12 / 0 / 0, ")
+    assert limit_cost([r for r in rows if not r["controller"].startswith("qp-box")]) == ""

@@ -291,7 +291,7 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
         (r"([\d,]+) UR5 \+ Panda pose tasks × (\d+) controllers \+ one reference per task, "
          r"([\d,]+) episodes", (a_tasks, a_rows, a_episodes)),
         (r"plants\.yaml --out results/plants-study # (\d+) episodes", (l_episodes,)),
-        (r"The same (\d+) UR5 and Panda pose tasks .*? under four plants: (\d+) controller "
+        (r"The same (\d+) UR5 and Panda pose tasks .*? under eighteen plants: (\d+) controller "
          r"episodes plus one offline reference per task", (l_tasks, l_tasks * l_rows)),
     ]  # fmt: skip
     for pattern, expected in checks:

@@ -19,7 +19,14 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.validation import Constraints, Interval, check_params
 
-from .peer_backend import PEER_LIMIT_CONSTRAINTS, PEER_REMOVED, PeerBackend, peer_limits, require
+from .peer_backend import (
+    PEER_LIMIT_CONSTRAINTS,
+    PEER_REMOVED,
+    PeerBackend,
+    peer_limits,
+    require,
+    shrunk_limits,
+)
 
 #: Name of the frame added at the end effector of the Drake plant.
 DRAKE_FRAME = "otmm_ee"
@@ -97,7 +104,7 @@ class DrakeBackend(PeerBackend):
         parameters.set_time_step(dt)
         limits = peer_limits(self.limit_set, robot, dt)
         self._gain = limits.gain
-        lower, upper = robot.position_limits
+        lower, upper = shrunk_limits(robot, limits.margin)
         q_low = np.full(plant.num_positions(), -np.inf)
         q_high = np.full(plant.num_positions(), np.inf)
         self._limit_arrays = (q_low, q_high)

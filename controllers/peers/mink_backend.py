@@ -21,7 +21,7 @@ from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 
-from .peer_backend import QpPeerBackend, peer_limits
+from .peer_backend import QpPeerBackend, peer_limits, shrunk_limits
 
 #: Largest Pinocchio/MuJoCo end-effector disagreement accepted at bind time [m] and [rad].
 POSE_TOLERANCE = 1e-9
@@ -87,13 +87,13 @@ class MinkBackend(QpPeerBackend):
         self._mink = mink
         self._site = site
         self._map = mujoco_joint_map(robot, model)
-        write_position_limits(model, robot, self._map)
+        limits = peer_limits(self.limit_set, robot, dt)
+        write_position_limits(model, robot, self._map, limits.margin)
         self._qpos0 = np.array(model.qpos0)
         self._configuration = mink.Configuration(model)
         self._data = VelocityTaskData(self.task_rows)
         self._task = _mink_velocity_task(site, self._data, self.lm_damping)
         self._limits: list[Any] = []
-        limits = peer_limits(self.limit_set, robot, dt)
         if limits.gain is not None:
             self._limits.append(mink.ConfigurationLimit(model, gain=limits.gain))
         if limits.speed is not None:
@@ -129,11 +129,16 @@ class MinkBackend(QpPeerBackend):
         return BackendOutput(self._map.from_peer_velocity(velocity), Status.OK)
 
 
-def write_position_limits(model: Any, robot: Robot, joint_map: JointMap) -> None:
-    """Write the robot's effective position limits (overrides included) into ``model``."""
+def write_position_limits(
+    model: Any, robot: Robot, joint_map: JointMap, margin: float = 0.0
+) -> None:
+    """Write the robot's effective position limits, shrunk by ``margin`` [rad], into ``model``.
+
+    Overrides included; the margin as in :func:`~.peer_backend.shrunk_limits`.
+    """
     import mujoco
 
-    lower, upper = robot.position_limits
+    lower, upper = shrunk_limits(robot, margin)
     for index, name in enumerate(robot.joint_names):
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         bounded = bool(np.isfinite(lower[index]) and np.isfinite(upper[index]))

@@ -29,8 +29,17 @@ import pinocchio as pin
 
 from otmm_qp.backends.backend import Backend, damping_weight
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SolverNotFound
-from otmm_qp.limits import LimitSet, LimitSpec, PositionLimit, VelocityLimit, make_limits
+from otmm_qp.limits import (
+    LimitSet,
+    LimitSpec,
+    PositionLimit,
+    PredictedPositionLimit,
+    VelocityLimit,
+    make_limits,
+)
 from otmm_qp.limits.options import LIMITS, removed_limit_keys
+from otmm_qp.limits.predicted_position_limit import FROM_PLANT
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.peer_models import describe
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -46,6 +55,7 @@ INSTALL_HINTS: dict[str, str] = {
     "pink": 'pip install "otmm-qp[peers]"  (or: pip install pin-pink)',
     "mink": 'pip install "otmm-qp[peers]"  (or: pip install mink mujoco)',
     "drake": 'pip install "otmm-qp[peers]"  (or: pip install drake)',
+    "oink": 'pip install "otmm-qp[peers]"  (or: pip install roboplan-oink)',
 }
 
 
@@ -72,14 +82,23 @@ class PeerLimits(NamedTuple):
             ``velocity`` limits (their intersection); None when the backend has no limits.
         gain: Position gain ``g ∈ (0, 1]`` of the ``position`` limits (the smallest, which is
             their intersection), or None when there is none.
+        margin: Distance [rad] kept from each position limit (the largest total margin of a
+            ``predicted_position`` limit: ``margin`` + k σ + quantum/2), written into the
+            peer's model limits; 0 for ``position``.
     """
 
     speed: FloatArray | None
     gain: float | None
+    margin: float = 0.0
 
 
-#: The limit types the peers map one-to-one onto their own limits.
-PEER_LIMITS = (VelocityLimit, PositionLimit)
+#: The limit types the peers map onto their own limits (``predicted_position``: its gain and
+#: its margin; see :func:`peer_limit_set` for what it cannot map).
+PEER_LIMITS = (VelocityLimit, PositionLimit, PredictedPositionLimit)
+
+#: ``predicted_position`` parameters no peer can express: the peers bound the step around the
+#: configuration they see, with no model of the commands in flight, braking or ramp.
+UNMAPPED = ("delay", "tau", "deceleration", "ramp_start")
 
 _NON_NEGATIVE = Interval(Real, 0, None, closed="left")
 #: The declared constraint of the peers' ``limits``.
@@ -114,8 +133,19 @@ def peer_limit_set(limits: bool | Sequence[LimitSpec] | None, peer: str) -> Limi
         if type(limit) not in PEER_LIMITS:
             raise ParameterError(
                 "limits",
-                f"{peer} has no counterpart of limit {limit.name!r}; allowed: velocity, position",
+                f"{peer} has no counterpart of limit {limit.name!r}; allowed: velocity, "
+                "position, predicted_position",
             )
+        if isinstance(limit, PredictedPositionLimit):
+            for key in UNMAPPED:
+                value = getattr(limit, key)
+                if value not in (None, FROM_PLANT):
+                    raise ParameterError(
+                        f"limits.{key}",
+                        f"{peer} has no counterpart of predicted_position's {key} (it bounds "
+                        "the step around the configuration it sees); allowed: gain, margin, "
+                        "noise, quantum, noise_bound",
+                    )
     return made
 
 
@@ -125,13 +155,22 @@ def peer_limits(limit_set: LimitSet, robot: Robot, dt: float) -> PeerLimits:
         return PeerLimits(None, None)
     speed = np.full(robot.nv, np.inf)
     gain: float | None = None
+    margin = 0.0
     for limit in limit_set.boxes:
         limit.bind(robot, dt)
         if isinstance(limit, VelocityLimit):
             speed = np.minimum(speed, limit.speed)
         elif isinstance(limit, PositionLimit):
             gain = limit.gain if gain is None else min(gain, limit.gain)
-    return PeerLimits(speed, gain)
+        if isinstance(limit, PredictedPositionLimit):
+            margin = max(margin, limit.total_margin)
+    return PeerLimits(speed, gain, margin)
+
+
+def shrunk_limits(robot: Robot, margin: float) -> tuple[FloatArray, FloatArray]:
+    """The robot's position limits ``(lower + m, upper − m)``, shapes ``(nv,)`` (±inf kept)."""
+    lower, upper = robot.position_limits
+    return np.asarray(lower, dtype=float) + margin, np.asarray(upper, dtype=float) - margin
 
 
 class PeerBackend(Backend):
@@ -184,6 +223,11 @@ class PeerBackend(Backend):
         target[:3, 3] += linear * dt
         target[:3, :3] = pin.exp3(angular * dt) @ target[:3, :3]
         return target
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand the plant's declaration to the limits (only their margin reaches the peer)."""
+        for limit in self.limit_set.boxes:
+            limit.declare_plant(declaration)
 
     def configure_limits(self, limits: bool | Sequence[LimitSpec] | None) -> None:
         """Validate and store the limits (:func:`peer_limit_set`); read back at :meth:`bind`.

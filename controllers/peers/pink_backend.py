@@ -16,7 +16,7 @@ from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 
-from .peer_backend import QpPeerBackend, peer_limits
+from .peer_backend import QpPeerBackend, peer_limits, shrunk_limits
 
 #: The warning ``pink.Configuration.check_limits`` logs on the root logger on every step whose
 #: configuration is beyond a limit by more than 1e-6 (``safety_break=False``).
@@ -88,7 +88,7 @@ class PinkBackend(QpPeerBackend):
         self._solve_ik = pink.solve_ik
         self._pinocchio = PinocchioPeerModel.create(self.description, robot)
         limits = peer_limits(self.limit_set, robot, dt)
-        model = limited_model(self._pinocchio.model, robot, limits.speed)
+        model = limited_model(self._pinocchio.model, robot, limits.speed, limits.margin)
         frame_id = self._pinocchio.frame_id
         self._model = model
         self._frame = str(model.frames[frame_id].name)
@@ -126,16 +126,19 @@ class PinkBackend(QpPeerBackend):
         return BackendOutput(self._pinocchio.velocity(velocity), Status.OK)
 
 
-def limited_model(model: Any, robot: Robot, speeds: FloatArray | None = None) -> Any:
+def limited_model(
+    model: Any, robot: Robot, speeds: FloatArray | None = None, margin: float = 0.0
+) -> Any:
     """A copy of ``model`` with the robot's effective position and speed limits written in.
 
     Args:
         model: The peer's ``pin.Model``.
         robot: The robot (its position limits, overrides included).
         speeds: The speed limits [rad/s], shape ``(nv,)``; the robot's when None.
+        margin: Distance [rad] kept from each position limit (:func:`shrunk_limits`).
     """
     model = pin.Model(model)
-    lower, upper = robot.position_limits
+    lower, upper = shrunk_limits(robot, margin)
     speeds = robot.velocity_limits if speeds is None else speeds
     for index, name in enumerate(robot.joint_names):
         joint = model.joints[model.getJointId(name)]

@@ -17,6 +17,7 @@ import numpy as np
 from otmm_qp.backends.backend import Backend
 from otmm_qp.exceptions import InfeasibleProblem, SolverNotConverged
 from otmm_qp.limits import LimitBox, LimitSet, Row
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -118,9 +119,14 @@ class BoxQpBackend(Backend):
         self._euclidean = robot.nq == robot.nv
         self.reset()
 
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand the plant's declaration to the limits (read at :meth:`bind`)."""
+        self.box.declare_plant(declaration)
+
     def reset(self) -> None:
-        """Forget the solver's warm start."""
+        """Forget the solver's warm start and the limits' per-step state."""
         self.session.reset()
+        self.box.reset()
 
     def begin_step(self, state: KinematicState, qdot_prev: FloatArray) -> tuple[FloatArray, bool]:
         """Write the step's box into ``box.bounds``.

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import abc
-from typing import ClassVar, Final, NamedTuple
+from typing import TYPE_CHECKING, ClassVar, Final, NamedTuple
 
 import numpy as np
 
@@ -13,6 +13,9 @@ from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.trajectories.preview import information_class
 from otmm_qp.trajectories.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from otmm_qp.plants.declaration import PlantDeclaration
 
 #: Singular values below ``RCOND·σ_max`` count as zero: the one rank cutoff of every backend.
 RCOND: Final = 1e-10
@@ -134,6 +137,12 @@ class Backend(abc.ABC):
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget warm starts and per-run state (called at the start of each run)."""
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:  # noqa: B027 - optional hook
+        """What the run's plant declares about itself (delay, lags, noise), before :meth:`bind`.
+
+        A backend with limits hands it to them (``otmm_qp.limits``); ignored here.
+        """
 
     @abc.abstractmethod
     def solve(

@@ -31,7 +31,7 @@ StepFunction = Callable[[int], None]
 #: The pipeline every ratio is taken against.
 REFERENCE = "pink (daqp)"
 #: Peer libraries (the first word of their pipeline labels).
-PEERS = ("pink", "mink", "drake")
+PEERS = ("pink", "mink", "drake", "oink")
 #: QP solvers timed through pink and mink; the otmm-qp ``qp`` solvers compared with each.
 PEER_SOLVERS = ("daqp", "proxqp", "osqp")
 #: The otmm-qp ``qp`` solvers timed: solver name → (how it runs, the peers' solver it is
@@ -125,6 +125,7 @@ def pipeline_specs(full: bool) -> list[PipelineSpec]:
         for solver in PEER_SOLVERS if full else ("daqp",):
             specs.append(PipelineSpec(f"{peer} ({solver})", peer, {"solver": solver}, peer=True))
     specs.append(PipelineSpec("drake (DiffIK)", "drake", {}, peer=True))
+    specs.append(PipelineSpec("oink (ProxQP)", "oink", {}, peer=True))
     if full:
         specs += [PipelineSpec(label, backend, params) for label, backend, params in PREVIEWS]
     return specs

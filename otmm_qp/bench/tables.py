@@ -7,7 +7,7 @@ from typing import Any
 STEP_DEFINITION = (
     "floor: the robot's kinematics + Jacobian + one dgesdd, nothing else; "
     "otmm-qp: KinematicState.compute (kinematics + Jacobian + SVD) + Controller.step; "
-    "pink / mink / Drake: the registered adapter's public solve(state, ẋ, q̇_prev) "
+    "pink / mink / Drake / OInK: the registered adapter's public solve(state, ẋ, q̇_prev) "
     "(the peer's configuration update, task, limits and QP / DiffIK)."
 )
 

@@ -27,7 +27,7 @@ from otmm_qp.robots.robot import FloatArray
 
 LIBRARIES = (
     "numpy", "scipy", "pin", "qpsolvers", "daqp", "proxsuite", "osqp", "pin-pink", "mink",
-    "mujoco", "drake",
+    "mujoco", "drake", "roboplan-oink",
 )  # fmt: skip
 #: Targets on medians of one run, as fractions of :data:`REFERENCE` (issue 30).
 DEFAULT_TARGET = 0.5

@@ -22,10 +22,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print (or write) the headline table and verdict lines."""
+    """Print (or write) the headline table and verdict lines (and the limit-cost table)."""
     from otmm_qp.commands.text_output import emit, out_file
-    from otmm_qp.studies.plant_headline import headline, plant_rows
+    from otmm_qp.studies.plant_headline import headline, limit_cost, plant_rows
 
     out = out_file(args.out)
-    emit(headline(plant_rows(args.study), args.reference).rstrip("\n"), out)
+    rows = plant_rows(args.study)
+    text = headline(rows, args.reference).rstrip("\n")
+    cost = limit_cost(rows)  # qp against qp-box (today's box), when the study has both
+    emit(text + ("\n\n" + cost.rstrip("\n") if cost else ""), out)
     return 0

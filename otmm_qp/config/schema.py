@@ -69,8 +69,15 @@ class MetricsConfig(Strict):
     blow_up_speed: float = Field(100.0, gt=0.0)
 
 
-#: A plant: one stage ``{type: lag, tau: 0.02}`` or a list applied in order (``otmm_qp.plants``).
-PlantConfig = PluginConfig | list[PluginConfig]
+class PresetConfig(Strict):
+    """``{preset: NAME}``: the stages of a plant preset (:mod:`otmm_qp.plants.presets`)."""
+
+    preset: str = Field(min_length=1)
+
+
+#: A plant: one stage ``{type: lag, tau: 0.02}``, a preset ``{preset: franka_fci}``, or a list
+#: of them applied in order (``otmm_qp.plants``).
+PlantConfig = PresetConfig | PluginConfig | list[PresetConfig | PluginConfig]
 
 
 class ControllerConfig(Strict):

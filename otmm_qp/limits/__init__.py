@@ -1,7 +1,8 @@
 """Joint limits as objects: each returns a velocity box (or a constraint row) per step.
 
 One concept per file: the interfaces (:mod:`~otmm_qp.limits.limit`), one class per limit
-(``velocity_limit``, ``position_limit``, ``acceleration_limit``, ``singularity_barrier``),
+(``velocity_limit``, ``position_limit``, ``predicted_position_limit`` with its
+:mod:`~otmm_qp.limits.command_prediction`, ``acceleration_limit``, ``singularity_barrier``),
 their composition (:mod:`~otmm_qp.limits.box`: intersection, priority relaxation, conflict)
 and the one YAML form with the mapping of older keys (:mod:`~otmm_qp.limits.options`). New
 limits register in the entry-point group ``otmm_qp.limits`` like any plugin.
@@ -12,6 +13,7 @@ from otmm_qp.limits.box import LimitBox, conflict, intersect, relaxed
 from otmm_qp.limits.limit import BaseLimit, Box, Limit, Row, RowLimit, per_joint
 from otmm_qp.limits.options import LimitSet, LimitSpec, make_limits
 from otmm_qp.limits.position_limit import PositionLimit
+from otmm_qp.limits.predicted_position_limit import PredictedPositionLimit
 from otmm_qp.limits.singularity_barrier import SingularityBarrier
 from otmm_qp.limits.velocity_limit import VelocityLimit
 
@@ -24,6 +26,7 @@ __all__ = [
     "LimitSet",
     "LimitSpec",
     "PositionLimit",
+    "PredictedPositionLimit",
     "Row",
     "RowLimit",
     "SingularityBarrier",

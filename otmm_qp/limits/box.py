@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from otmm_qp.limits.limit import Box, Limit
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 
 __all__ = ["LimitBox", "conflict", "intersect", "relaxed"]
@@ -126,6 +127,16 @@ class LimitBox:
             (limit, box) for limit, box in zip(self.limits, parts, strict=True) if not limit.static
         )
         self._sources: tuple[Box, ...] = (combined, *(box for _, box in self._dynamic))
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:
+        """Hand the plant's declaration to every limit (before :meth:`bind`)."""
+        for limit in self.limits:
+            limit.declare_plant(declaration)
+
+    def reset(self) -> None:
+        """Forget the limits' per-step state (a new run)."""
+        for limit in self.limits:
+            limit.reset()
 
     def compute(self, theta: FloatArray, qdot_prev: FloatArray) -> bool:
         """Write this step's intersection into :attr:`bounds`; return whether it is empty.

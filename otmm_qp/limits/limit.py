@@ -21,6 +21,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from otmm_qp.exceptions import DimensionError
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 
@@ -73,6 +74,12 @@ class BaseLimit(abc.ABC):
         """
         self.robot = robot
         self.dt = dt
+
+    def declare_plant(self, declaration: PlantDeclaration) -> None:  # noqa: B027 - optional hook
+        """Take what the run's plant declares about itself (before :meth:`bind`; ignored here)."""
+
+    def reset(self) -> None:  # noqa: B027 - optional hook
+        """Forget the last run's per-step state (none here)."""
 
 
 class Limit(BaseLimit):

@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import BaseLimit, Limit, RowLimit
-from otmm_qp.limits.position_limit import PositionLimit
+from otmm_qp.limits.predicted_position_limit import PredictedPositionLimit
 from otmm_qp.limits.velocity_limit import VelocityLimit
 from otmm_qp.validation import InstanceOf
 
@@ -134,7 +134,7 @@ def make_limits(limits: Sequence[LimitSpec] | None, default_gain: float = 0.5) -
             )
         made = [_make(entry, f"{FIELD}.{i}") for i, entry in enumerate(limits)]
     else:
-        made = [VelocityLimit(), PositionLimit(default_gain)]
+        made = [VelocityLimit(), PredictedPositionLimit(default_gain)]
     boxes = [limit for limit in made if isinstance(limit, Limit)]
     if not any(isinstance(limit, VelocityLimit) for limit in boxes):
         boxes.insert(0, VelocityLimit())

@@ -17,8 +17,10 @@ from typing import Any
 
 from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.plants.declaration import PlantDeclaration, combine
 from otmm_qp.plants.ideal import IdealPlant
 from otmm_qp.plants.plant import Plant, PlantStep
+from otmm_qp.plants.presets import PRESET_KEY, expand_preset
 from otmm_qp.robots.robot import FloatArray, Robot
 
 __all__ = ["PlantChain", "build_plant", "plant_label"]
@@ -72,6 +74,10 @@ class PlantChain:
             qdot = stage.command(qdot)
         return self.body.advance(q, qdot)
 
+    def declares(self, dt: float) -> PlantDeclaration:
+        """What the stages declare, combined (:func:`~otmm_qp.plants.declaration.combine`)."""
+        return combine(stage.declares(dt) for stage in self.stages)
+
     def label(self) -> str:
         """``ideal``, or the stage labels joined by ``+`` (``lag(tau=0.02)+delay(steps=1)``)."""
         if self.ideal:
@@ -95,6 +101,9 @@ def _specs(spec: Any) -> list[Mapping[str, Any]]:
 def build_plant(spec: Any, field: str = "plant") -> PlantChain:
     """Build a plant from its config: ``{type: lag, tau: 0.02}``, a list of such, or None.
 
+    ``{preset: NAME}`` (alone or as a list entry) stands for the preset's stages
+    (:mod:`otmm_qp.plants.presets`).
+
     Every stage is created through the ``otmm_qp.plants`` entry points (a third-party stage
     registers exactly like the built-ins).
 
@@ -103,10 +112,18 @@ def build_plant(spec: Any, field: str = "plant") -> PlantChain:
             one line naming ``field`` and what is allowed.
     """
     stages: list[Plant] = []
+    blocks: list[tuple[str, Any]] = []
     for i, block in enumerate(_specs(spec)):
         where = f"{field}.{i}" if not isinstance(spec, Mapping) else field
+        if isinstance(block, Mapping) and PRESET_KEY in block:
+            blocks.extend((f"{where}.{PRESET_KEY}", stage) for stage in expand_preset(block, where))
+        else:
+            blocks.append((where, block))
+    for where, block in blocks:
         if not isinstance(block, Mapping) or not isinstance(block.get("type"), str):
-            raise ConfigError(where, "must be a mapping with a 'type' (a registered plant)")
+            raise ConfigError(
+                where, "must be a mapping with a 'type' (a registered plant) or a 'preset'"
+            )
         params = {k: v for k, v in block.items() if k != "type"}
         stages.append(registry.create(registry.PLANTS, block["type"], params, where))
     try:

@@ -13,6 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import Constraints, Interval, check_params
@@ -57,6 +58,10 @@ class DelayPlant(Plant):
             return qdot
         self._queue.append(np.array(qdot, dtype=float))
         return self._queue.popleft()
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        """The latency N [periods]."""
+        return PlantDeclaration(delay=self.steps)
 
     def label(self) -> str:
         """``delay(steps=N)``."""

@@ -23,6 +23,7 @@ from typing import ClassVar, Literal
 import numpy as np
 
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import Constraints, Interval, OneOf, check_params
@@ -73,6 +74,17 @@ class LagPlant(Plant):
         r""":math:`\dot q^{a} \leftarrow \dot q^{a} + \alpha(\dot q^{cmd} - \dot q^{a})` [rad/s]."""
         self._actual = self._actual + self.alpha * (qdot - self._actual)
         return self._actual
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        r"""The lag as a zero-order-hold-exact τ [s].
+
+        τ itself, or for ``update: euler`` (α = dt/τ) the τ' with the same α,
+        :math:`\tau' = -dt/\ln(1 - dt/\tau)` (0 at α = 1).
+        """
+        if self.update == "exact":
+            return PlantDeclaration(lags=(self.tau,))
+        alpha = min(1.0, dt / self.tau)
+        return PlantDeclaration(lags=(0.0 if alpha >= 1.0 else -dt / math.log1p(-alpha),))
 
     def label(self) -> str:
         """``lag(tau=…)`` (with ``,euler`` for that update)."""

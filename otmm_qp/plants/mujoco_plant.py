@@ -36,6 +36,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -248,6 +249,10 @@ class MujocoPlant(Plant):
         if not stable:
             return PlantStep(q, np.zeros(robot.nv), peak, saturated, False, detail)
         return PlantStep(robot.configuration(theta), actual, peak, saturated)
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        """The servo bandwidth f [Hz] (the servo follows the integrated command)."""
+        return PlantDeclaration(servo_frequency=self.frequency)
 
     def label(self) -> str:
         """``mujoco(f=…,zeta=…)`` plus the non-default options."""

@@ -25,6 +25,7 @@ import abc
 import math
 from typing import ClassVar, NamedTuple
 
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 
 __all__ = ["Plant", "PlantStep"]
@@ -91,6 +92,13 @@ class Plant(abc.ABC):
             NotImplementedError: The stage is not a body.
         """
         raise NotImplementedError(f"plant stage {self.name!r} does not integrate the arm")
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        """What the stage declares about itself for a control period ``dt`` [s] (nothing here).
+
+        Read by the controller's limits before a run (:mod:`otmm_qp.plants.declaration`).
+        """
+        return PlantDeclaration()
 
     def label(self) -> str:
         """Short label of the stage and its parameters, e.g. ``lag(tau=0.02)``."""

@@ -17,6 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import Constraints, Interval, check_params
@@ -71,6 +72,10 @@ class SensorPlant(Plant):
         if self.quantum > 0.0:
             theta = self.quantum * np.round(theta / self.quantum)
         return self._robot.configuration(theta)
+
+    def declares(self, dt: float) -> PlantDeclaration:
+        """The noise σ [rad] and the quantum 2π/counts [rad] (0 without counts)."""
+        return PlantDeclaration(noise=self.noise, quantum=self.quantum)
 
     def label(self) -> str:
         """``sensor(noise=…,counts=…)``."""

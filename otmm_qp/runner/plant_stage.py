@@ -9,9 +9,10 @@ from __future__ import annotations
 from typing import Any
 
 from otmm_qp.conditioning.pipeline import Conditioning, build_conditioning
-from otmm_qp.config.schema import ControllerConfig
+from otmm_qp.config.schema import ControllerConfig, PresetConfig
 from otmm_qp.exceptions import ConfigError, DimensionError
 from otmm_qp.plants.chain import PlantChain, build_plant
+from otmm_qp.plants.presets import PRESET_KEY
 from otmm_qp.robots.robot import FloatArray, Robot
 
 __all__ = ["build_stage", "check_conditioning", "check_plant", "plant_record"]
@@ -24,11 +25,13 @@ def build_stage(config: ControllerConfig) -> tuple[PlantChain, Conditioning]:
 
 
 def plant_record(spec: Any) -> Any:
-    """A plant config (a :class:`PluginConfig`, a list of them, or None) as plain data."""
+    """A plant config (a :class:`PluginConfig`, a preset, a list of them, or None) as data."""
     if spec is None:
         return None
     if isinstance(spec, list):
-        return [dict(s.params, type=s.type) for s in spec]
+        return [plant_record(s) for s in spec]
+    if isinstance(spec, PresetConfig):
+        return {PRESET_KEY: spec.preset}
     return dict(spec.params, type=spec.type)
 
 
@@ -59,6 +62,15 @@ def check_plant(
         if budget is not None:
             _check_substeps(chain, *budget, field)
     except ConfigError as error:
+        preset = _preset_name(plant)
+        if preset is not None and error.field.endswith("effort_limit"):
+            joint = error.message.split(" has no", 1)[0]
+            raise ConfigError(
+                f"{field}.preset",
+                f"{preset!r} needs a positive URDF effort for every joint (its MuJoCo body "
+                f"applies them): {joint} has none; list the preset's stages (docs/plants.md) "
+                "with the mujoco stage's effort_limit instead",
+            ) from None
         if error.field.startswith(field):
             raise
         raise ConfigError(f"{field}.{error.field}".rstrip("."), error.message) from None
@@ -76,6 +88,15 @@ def _check_substeps(chain: PlantChain, steps: int, max_steps: int, field: str) -
             f"{steps * substeps:.3g} exceeds max_steps = {max_steps}; raise the plant's "
             "timestep, shorten duration, or raise max_steps explicitly",
         )
+
+
+def _preset_name(plant: Any) -> str | None:
+    """The preset a plant config names (alone or in its list), or None."""
+    blocks = plant if isinstance(plant, list) else [plant]
+    for block in blocks:
+        if isinstance(block, dict) and PRESET_KEY in block:
+            return str(block[PRESET_KEY])
+    return None
 
 
 def check_conditioning(

@@ -140,8 +140,9 @@ def simulate(
         early; the steps done so far are kept and ``error_message`` says why.
     """
     robot, dt = episode.robot, episode.dt
-    controller.bind(robot, dt, episode.trajectory)
     plant = plant if plant is not None else PlantChain([IdealPlant()])
+    controller.declare_plant(plant.declares(dt))
+    controller.bind(robot, dt, episode.trajectory)
     conditioning = conditioning if conditioning is not None else Conditioning()
     if np.all(np.isfinite(episode.q0)):
         plant.reset(robot, episode.q0, dt)

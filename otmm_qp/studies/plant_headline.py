@@ -11,6 +11,11 @@ From the episode rows of a study with a ``plants`` axis (controllers named
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
 
+When the study has both ``qp`` and ``qp-box`` (``qp`` with today's position box), a second
+table pairs them per plant on the same tasks (:func:`limit_cost`): episodes with a position-limit
+violation, success rates with the exact McNemar test, and the paired Wilcoxon test of the max
+error, both Holm-corrected over the plants.
+
 Run as ``otmm-qp study plants RESULTS_DIR`` (prints Markdown).
 """
 
@@ -27,13 +32,14 @@ from scipy import stats
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
-from otmm_qp.studies.statistics import holm, paired_test
+from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
 
-__all__ = ["headline", "main", "plant_rows"]
+__all__ = ["headline", "limit_cost", "main", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
     "max_joint_speed", "filter_switches", "peak_torque_ratio", "saturated_steps",
+    "position_violations",
 ]  # fmt: skip
 
 
@@ -142,6 +148,47 @@ def plant_rows(out: Path) -> list[dict[str, Any]]:
     if not any(r.get("plant") for r in rows if r["controller"] != REFERENCE_NAME):
         raise ConfigError(str(out), "not a plants study (no episode rows with a plant)")
     return rows
+
+
+def limit_cost(rows: list[dict[str, Any]], new: str = "qp", old: str = "qp-box") -> str:
+    """Markdown: ``new`` against ``old`` per plant on the same tasks (see the module)."""
+    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
+    by: dict[tuple[str, str], dict[Any, dict[str, Any]]] = {}
+    for row in rows:
+        base = str(row["controller"]).rsplit("@", 1)[0]
+        if base in (new, old):
+            by.setdefault((str(row["plant"]), base), {})[key(row)] = row
+    plants = [p for p in dict.fromkeys(p for p, _ in by) if (p, new) in by and (p, old) in by]
+    if not plants:
+        return ""
+    rates, errors = [], []
+    for p in plants:
+        tasks = sorted(set(by[p, new]) & set(by[p, old]), key=str)
+        a = [by[p, new][t] for t in tasks]
+        b = [by[p, old][t] for t in tasks]
+        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
+        rates.append(mcnemar_exact(new, old, success[0], success[1]))
+        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
+        errors.append(paired_test(new, old, maxima[0], maxima[1]))
+    p_rates = holm([r.p_value for r in rates])
+    p_errors = holm([t.p_value for t in errors])
+    lines = [
+        f"| plant | episodes with a position-limit violation: {new} / {old} | success %: "
+        f"{new} / {old} | tasks only {new} / only {old} succeeds, Holm p | max error: tasks "
+        f"{new} lower / tied / higher, Holm p |",
+        "|---|---:|---:|---|---|",
+    ]
+    for i, p in enumerate(plants):
+        pair = (list(by[p, new].values()), list(by[p, old].values()))
+        violations = [sum((r["position_violations"] or 0) > 0 for r in x) for x in pair]
+        percent = [100.0 * float(np.mean([bool(r["success"]) for r in x])) for x in pair]
+        r, t = rates[i], errors[i]
+        lines.append(
+            f"| {p} | {violations[0]} / {violations[1]} | {percent[0]:.0f} / {percent[1]:.0f} | "
+            f"{r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
+            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,72 @@
+r"""Plant presets: the command path of real arms' streaming interfaces as stage lists.
+
+``plant: {preset: NAME}`` (alone, or as one entry of a stage list) expands to the stages below,
+in the controller's own period ``dt`` (a preset does not change ``dt``: its latency is counted
+in control periods). Every number's source is in ``docs/plants.md``; each body is MuJoCo, so a
+preset needs the arm's joint efforts (a URDF ``effort`` per joint).
+
+==============  ===================================================================
+``franka_fci``  latency 1 period; MuJoCo servos at 100 Hz (libfranka's default low-pass
+                cutoff, τ = 1/(2π·100 Hz) ≈ 1.6 ms), 1 ms MuJoCo step
+``ur_e_series`` latency 1 period; servoj look-ahead smoothing as a lag τ = 0.03 s (its
+                smallest look-ahead); MuJoCo servos at 300/(2π) ≈ 47.7 Hz (servoj's default
+                gain 300 as ω [1/s]), 2 ms step
+``ur_cb3``      as ``ur_e_series`` with a latency of 2 periods (125 Hz instead of 500 Hz)
+==============  ===================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from otmm_qp.exceptions import ConfigError
+
+__all__ = ["PRESET_KEY", "PRESETS", "expand_preset"]
+
+#: The key of a preset entry.
+PRESET_KEY = "preset"
+
+_UR_SERVO = {"type": "mujoco", "frequency": 300.0 / (2.0 * math.pi), "damping_ratio": 1.0,
+             "timestep": 0.002}  # fmt: skip
+
+#: Preset name → its stages (``{type, **params}``), in order.
+PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
+    "franka_fci": (
+        {"type": "delay", "steps": 1},
+        {"type": "mujoco", "frequency": 100.0, "damping_ratio": 1.0, "timestep": 0.001},
+    ),
+    "ur_e_series": (
+        {"type": "delay", "steps": 1},
+        {"type": "lag", "tau": 0.03},
+        _UR_SERVO,
+    ),
+    "ur_cb3": (
+        {"type": "delay", "steps": 2},
+        {"type": "lag", "tau": 0.03},
+        _UR_SERVO,
+    ),
+}
+
+
+def expand_preset(block: Mapping[str, Any], field: str) -> list[Mapping[str, Any]]:
+    """The stages of ``{preset: NAME}``.
+
+    Raises:
+        ConfigError: An unknown name, or other keys beside ``preset`` (one line, naming the
+            field and the presets there are).
+    """
+    others = sorted(str(key) for key in block if key != PRESET_KEY)
+    if others:
+        raise ConfigError(
+            field,
+            f"a preset takes no other keys, got {', '.join(others)}; list the stages to change one",
+        )
+    name = block[PRESET_KEY]
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ConfigError(
+            f"{field}.{PRESET_KEY}",
+            f"unknown preset {name!r}; available: {', '.join(sorted(PRESETS))}",
+        )
+    return [dict(stage) for stage in PRESETS[name]]

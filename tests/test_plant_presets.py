@@ -1,0 +1,105 @@
+"""Plant presets and the bad input of issue 29: one line, exit 2, before any compute.
+
+* each preset expands to its documented stages and declares what they declare;
+* ``otmm-qp run`` refuses a negative or NaN margin, a deceleration of 0, an unknown preset
+  and a preset on an arm without URDF efforts with one ``otmm-qp: error: FIELD: ...`` line,
+  exit 2, and no output directory.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from otmm_qp.cli import main
+from otmm_qp.exceptions import ConfigError
+from otmm_qp.plants import DelayPlant, LagPlant, build_plant
+from otmm_qp.plants.mujoco_plant import MujocoPlant
+from otmm_qp.plants.presets import PRESETS
+
+
+def test_presets_expand_to_their_documented_stages() -> None:
+    franka = build_plant({"preset": "franka_fci"})
+    delay, body = franka.stages
+    assert isinstance(delay, DelayPlant) and delay.steps == 1
+    assert isinstance(body, MujocoPlant) and body.frequency == 100.0 and body.timestep == 0.001
+    declared = franka.declares(0.02)
+    assert declared.delay == 1 and declared.servo_frequency == 100.0
+    for name, steps in (("ur_e_series", 1), ("ur_cb3", 2)):
+        delay, lag, body = build_plant({"preset": name}).stages
+        assert isinstance(delay, DelayPlant) and delay.steps == steps
+        assert isinstance(lag, LagPlant) and lag.tau == 0.03
+        assert isinstance(body, MujocoPlant)
+        assert math.isclose(body.frequency * 2 * math.pi, 300.0)
+    inside = build_plant([{"type": "sensor", "noise": 1e-4}, {"preset": "ur_cb3"}])
+    assert [s.name for s in inside.stages] == ["sensor", "delay", "lag", "mujoco"]
+    assert sorted(PRESETS) == ["franka_fci", "ur_cb3", "ur_e_series"]
+
+
+@pytest.mark.parametrize(
+    ("spec", "field"),
+    [
+        ({"preset": "kuka_lbr"}, "plant.preset"),
+        ({"preset": "ur_cb3", "seed": 1}, "plant"),
+        ([{"preset": 7}], "plant.0.preset"),
+    ],
+)
+def test_bad_presets_name_the_field(spec: Any, field: str) -> None:
+    with pytest.raises(ConfigError) as error:
+        build_plant(spec)
+    assert error.value.field == field and "\n" not in str(error.value)
+
+
+PLANAR: dict[str, Any] = {
+    "name": "bad-input",
+    "dt": 0.02,
+    "experiments": [
+        {
+            "name": "e",
+            "robot": {"type": "planar", "link_lengths": [1.0, 0.8], "limits": [[-2, 2]] * 2},
+            "q0": [0.3, 0.4],
+            "trajectory": {"type": "circle", "centre": [1.0, 0.5], "radius": 0.2, "period": 2.0},
+            "duration": 0.2,
+            "controllers": [{"name": "qp", "backend": {"type": "qp"}}],
+        }
+    ],
+}
+
+
+def _run(tmp_path: Path, capsys: pytest.CaptureFixture[str], **edits: Any) -> tuple[int, str]:
+    config = yaml.safe_load(yaml.safe_dump(PLANAR))
+    experiment = config["experiments"][0]
+    if "limits" in edits:
+        experiment["controllers"][0]["backend"]["limits"] = edits["limits"]
+    if "plant" in edits:
+        experiment["plant"] = edits["plant"]
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(config), encoding="utf-8")
+    out = tmp_path / "out"
+    code = main(["run", str(path), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert not out.exists()  # refused before any compute
+    return code, err
+
+
+@pytest.mark.parametrize(
+    ("edits", "expected"),
+    [
+        ({"limits": [{"type": "predicted_position", "margin": -0.01}]}, "limits.0.margin"),
+        ({"limits": [{"type": "predicted_position", "margin": float("nan")}]}, "limits.0.margin"),
+        ({"limits": [{"type": "predicted_position", "deceleration": 0.0}]}, "deceleration"),
+        ({"plant": {"preset": "kuka_lbr"}}, "plant.preset: unknown preset 'kuka_lbr'"),
+        ({"plant": {"preset": "franka_fci"}}, "needs a positive URDF effort"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_before_compute(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], edits: dict[str, Any], expected: str
+) -> None:
+    code, err = _run(tmp_path, capsys, **edits)
+    assert code == 2
+    assert err.startswith("otmm-qp: error: ") and err.count("\n") == 1
+    assert expected in err

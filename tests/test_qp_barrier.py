@@ -60,9 +60,9 @@ def test_the_older_key_says_what_to_write() -> None:
             registry.BACKENDS, "qp", {"singularity_barrier": {"sigma_safe": 0.02}}, "backend"
         )
     assert str(info.value) == (
-        "backend.singularity_barrier: removed (limits have one form): write limits: "
-        "[{type: position, gain: 0.5}, {type: singularity_barrier, sigma_safe: S, gain: G}] "
-        "instead (the velocity limit is always added)"
+        "backend.singularity_barrier: removed (limits have one form: {type: singularity_barrier,"
+        " …} in one limits list, replacing the default set) since schema 2 (otmm-qp 0.2): write "
+        "limits: [{type: position, gain: 0.5}, {type: singularity_barrier, sigma_safe: 0.02}]"
     )
 
 

@@ -149,12 +149,22 @@ def file_version(data: Mapping[str, Any], source: str) -> int | None:
     return value
 
 
+#: Longest composite value (a ``limits`` list to write) shown in full [characters].
+FLOW_LIMIT = 240
+
+
 def _flow(value: Any, limit: int = 80) -> str:
-    """A value as YAML flow text, cut to ``limit`` characters (each entry to 40)."""
+    """A value as YAML flow text, cut to ``limit`` characters (each entry to 40).
+
+    A mapping or list is cut at :data:`FLOW_LIMIT` instead, so a ``limits`` list to write is
+    shown whole at any ordinary size.
+    """
     if isinstance(value, Mapping):
         text = "{" + ", ".join(f"{k}: {_flow(v, 40)}" for k, v in value.items()) + "}"
+        limit = max(limit, FLOW_LIMIT)
     elif isinstance(value, list):
-        text = "[" + ", ".join(_flow(v, 40) for v in value) + "]"
+        text = "[" + ", ".join(_flow(v, FLOW_LIMIT) for v in value) + "]"
+        limit = max(limit, FLOW_LIMIT)
     elif isinstance(value, str):
         text = value
     else:

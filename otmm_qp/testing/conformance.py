@@ -181,10 +181,12 @@ def run_scenario(scenario: Scenario, controller: ControllerSpec) -> RunRecord:
 
 
 def builtin_backends() -> list[str]:
-    """Causal backends registered by ``otmm_qp_controllers`` (the built-in reference set).
+    """One-step backends registered by ``otmm_qp_controllers`` (the built-in reference set).
 
     A backend that reads the desired path ahead (``preview_horizon`` set, e.g. ``preview``)
-    knows more than the controllers under test and is left out.
+    knows more than the controllers under test and is left out; so is one that plans over a
+    horizon of its own (``horizon`` set, e.g. ``preview_causal``): the set is what a
+    one-step differential-IK step achieves, the bar a plugin's single step is held to.
     """
     return [
         name
@@ -194,12 +196,15 @@ def builtin_backends() -> list[str]:
 
 
 def _causal(name: str) -> bool:
-    """Whether backend ``name`` (with its reference parameters) reads no preview."""
+    """Whether backend ``name`` (with its reference parameters) is a one-step backend."""
     try:
         backend = registry.create(registry.BACKENDS, name, REFERENCE_PARAMS.get(name, {}), name)
     except OtmmError:  # e.g. a peer library missing: left to run_scenario, which skips it
         return True
-    return getattr(backend, "preview_horizon", None) is None
+    return (
+        getattr(backend, "preview_horizon", None) is None
+        and getattr(backend, "horizon", None) is None
+    )
 
 
 @functools.cache

@@ -29,7 +29,8 @@ class ReferenceSettings:
         speed_limit: Cap on every joint speed [rad/s] on top of the robot's own limits
             (the study's ``max_joint_speed`` criterion); None: the robot's limits only.
         sigma_s: σ_min threshold of ``near_singular`` [task units].
-        time_budget: Wall-clock budget of one solve [s]; past it the solve is ``failed``.
+        time_budget: Wall-clock budget of one solve [s]; past it the solve stops with the
+            best path so far.
         iterations: Newton iterations of the least-squares phase.
         minimax_rounds: Lawson re-weighting rounds toward the min-max error (only when the
             least-squares path misses a tolerance).
@@ -46,7 +47,7 @@ class ReferenceSettings:
     orientation_tolerance: float | None = None
     speed_limit: float | None = None
     sigma_s: float = SIGMA_S
-    time_budget: float = 30.0
+    time_budget: float = 60.0
     iterations: int = 6
     minimax_rounds: int = 1
     polish_iterations: int = 20

@@ -6,10 +6,11 @@ An episode row is judged by one of two readings, chosen per task by the referenc
 * **achievable** (or no reference stored): the tolerances hold —
   ``max_error ≤ max_position_error`` [m] and ``max_orientation_error ≤ max_orientation_error``
   [rad];
-* **unachievable** (``reference.achievable`` is false and ``reference.status`` is not
-  ``failed``): *graceful* —
-  ``max_error ≤ f_e · reference.max_error`` (and the same for orientation when the reference
-  has one), back on the path at the end
+* **not achievable** (``reference.achievable`` is false and ``reference.status`` is not
+  ``failed``: the reference's label is ``unachievable`` or ``undecided``): *graceful* —
+  ``max_error ≤ f_e · reference.max_error`` (the position-optimal reference; the same for
+  orientation with ``reference.max_orientation_error``, the best path's), back on the path
+  at the end
   (``final_error ≤ max(max_position_error, f_e · reference.final_error)`` when the
   reference's final error is known) and no chatter
   (:math:`\max_{k \ge 1, j} |\dot q_{k,j} - \dot q_{k-1,j}| / \dot q_{max,j} \le f_c`).

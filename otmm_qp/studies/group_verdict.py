@@ -2,9 +2,9 @@ r"""Where one controller sits on a study's Pareto fronts: a thin command over ``
 
 The fronts, the paired tests and the criterion are those of :mod:`otmm_qp.studies.fronts`,
 which the study report uses too. Per robot × generator (default) or per kind of task pooled
-over the study's robots (``--kinds``: singular crossings, beyond-reach and limit-bound motion
-as the report's verdicts choose them from the reference, plus held targets and reachable
-random targets by generator; a task can be in several)::
+over the study's robots (``--kinds``: singular crossings, unachievable (certified), undecided
+and limit-bound motion as the report's verdicts choose them from the reference's bracket, plus
+held targets and reachable random targets by generator; a task can be in several)::
 
     otmm-qp study verdict DIR --ours NAME [--kinds] [--out FILE]
 

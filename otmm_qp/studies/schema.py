@@ -147,7 +147,9 @@ class ReferenceConfig(Strict):
 
     Attributes:
         enabled: Compute it.
-        time_budget: Wall-clock budget per task [s]; the solve stops at it with the best
+        time_budget: Wall-clock budget per task [s] (a safety net: the iteration caps bind
+            first, so results do not depend on the machine's load); the solve stops at it with
+            the best
             path so far (the upper bound; ``failed`` only on a solver failure).
         speed_bound: ``criteria``: joint speeds within the robot's limits *and* the
             success criterion ``max_joint_speed`` (a certificate then means a controller could
@@ -162,7 +164,7 @@ class ReferenceConfig(Strict):
     """
 
     enabled: bool = True
-    time_budget: float = Field(20.0, gt=0.0, allow_inf_nan=False)
+    time_budget: float = Field(60.0, gt=0.0, allow_inf_nan=False)
     speed_bound: Literal["criteria", "robot"] = "criteria"
     iterations: int = Field(6, ge=0)
     minimax_rounds: int = Field(1, ge=0)

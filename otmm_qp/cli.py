@@ -24,7 +24,7 @@ from otmm_qp.runner import interrupt  # noqa: E402
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name.
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "init")
 
 
 def _command(name: str) -> ModuleType:
@@ -50,8 +50,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``otmm-qp`` console script."""
     parser, modules = _parser()
     arguments = list(sys.argv[1:] if argv is None else argv)
-    if not arguments:
-        arguments = ["run"]  # no command: the paper reproduction
+    if not arguments or (arguments[0].startswith("-") and arguments[0] not in ("-h", "--help")):
+        arguments = ["run", *arguments]  # no command: the paper reproduction (`otmm-qp --force`)
     args = parser.parse_args(arguments)
     try:
         with interrupt.handle_stop_signals():

@@ -206,7 +206,8 @@ def check_parameters(
     a rename) are refused with that line rather than as unknown.
 
     Raises:
-        ConfigError: Naming the unknown parameter and the allowed ones.
+        ConfigError: Naming the unknown parameter and the allowed ones, or a required
+            parameter that is missing.
         ParameterError: A removed parameter, with its replacement.
     """
     signature = inspect.signature(factory)
@@ -219,6 +220,14 @@ def check_parameters(
         return
     allowed = [a for a in accepted if a not in reserved]
     removed: Mapping[str, str] = getattr(factory, "removed_parameters", None) or {}
+    required = [
+        p.name
+        for p in signature.parameters.values()
+        if p.name in allowed and p.default is p.empty and p.name not in params
+    ]
+    if required:
+        shown = ", ".join(required)
+        raise ConfigError(f"{field}.{required[0]}", f"required parameter missing (give {shown})")
     for key in params:
         if key in removed and key not in allowed:  # renamed or removed: say what to write
             raise ParameterError(f"{field}.{key}", removed[key])

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -23,6 +25,7 @@ from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.pose import rpy_matrix
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval
 
 
 class HeldTargetsTrajectory(Trajectory):
@@ -38,6 +41,18 @@ class HeldTargetsTrajectory(Trajectory):
     """
 
     name = "held_targets"
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "targets": InstanceOf(
+            (list, tuple),
+            "a list of targets [x, y(, z)] [m] (pose: + roll, pitch, yaw [rad])",
+            exclude=(str,),
+        ),
+        "hold": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), scalar=True, per="target"
+        ),
+        "initial_hold": Interval(Real, 0, None, unit="s"),
+    }
 
     def __init__(
         self,

@@ -3,16 +3,25 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 
 class _Line(Trajectory):
     """Shared constructor of the lines: ``begin`` defaults to the start position."""
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "end": ArrayOf(Interval(Real, None, None, unit="m"), per="task coordinate"),
+        "duration": Interval(Real, 0, None, closed="neither", unit="s"),
+        "begin": [ArrayOf(Interval(Real, None, None, unit="m"), per="task coordinate"), None],
+    }
 
     def __init__(
         self,
@@ -21,6 +30,7 @@ class _Line(Trajectory):
         duration: float,
         begin: Sequence[float] | None = None,
     ) -> None:
+        check_params(self, locals())
         self.end = np.asarray(end, dtype=float)
         dim = self.end.size
         if begin is None:

@@ -13,7 +13,10 @@ class Trajectory(abc.ABC):
 
     Plugins are constructed as ``Trajectory(start=x0, **params)`` where ``x0`` is the task
     value at the start configuration (so a circle can start at the point nearest to it and a
-    pose trajectory can keep the start orientation).
+    pose trajectory can keep the start orientation). A trajectory that needs more of the
+    experiment names it in ``framework_parameters``: ``robot`` (the experiment's
+    :class:`~otmm_qp.robots.robot.Robot`) and ``q0`` (its start configuration, shape
+    ``(nq,)``) are passed too; a config never gives them.
 
     Attributes:
         duration: Natural duration [s] (one period, the motion time), used when the
@@ -22,6 +25,8 @@ class Trajectory(abc.ABC):
 
     #: The class's own name (e.g. ``"circle"``), a class constant never assigned on an instance.
     name: ClassVar[str] = "trajectory"
+    #: Constructor parameters the framework passes itself (never from a config).
+    framework_parameters: ClassVar[tuple[str, ...]] = ("start",)
     duration: float
 
     @abc.abstractmethod

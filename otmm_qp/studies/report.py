@@ -45,6 +45,7 @@ from otmm_qp.studies.fronts import (
 )
 from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
 from otmm_qp.studies.schema import StudyConfig
+from otmm_qp.studies.sizing import decision_advice
 from otmm_qp.studies.statistics import (
     ALPHA,
     Interval,
@@ -387,7 +388,9 @@ def group_verdict(group: TaskGroup) -> str:
                 f"{r.name} {_pct(rates[r.name])}"
                 for r in sorted(ranking, key=lambda r: (-rates[r.name], r.name))
             )
-            + ")."
+            + "); "
+            + decision_advice(best.name, tests)
+            + "."
         )
     text = head + f"pick **{best.name}** (success {_pct(rates[best.name])})"
     others = [r for r in top if r.name != best.name]
@@ -395,6 +398,7 @@ def group_verdict(group: TaskGroup) -> str:
         text += "; not separated from it by the paired test: " + ", ".join(
             f"{r.name} ({_pct(rates[r.name])})" for r in others
         )
+        text += "; " + decision_advice(best.name, tests)
     beaten = [r for r in ranking if best.name in r.beaten_by]
     if beaten:
         runner = max(beaten, key=lambda r: (rates[r.name], r.name))

@@ -112,6 +112,10 @@ def test_doc_steps_take_a_urdf_package_to_a_verdict(
     assert robot.params["frame"] == "j2s6s200_end_effector"
     assert robot.params["locked_joints"] == list(FINGERS)
     assert sum(g.count for g in config.generators) == 60
+    assert config.decide is not None and (config.decide.budget_tasks, config.decide.batch) == (
+        600,
+        60,
+    )
 
     # 2. the run config of the doc, verbatim, and its command
     (run_yaml,) = doc_blocks("yaml")
@@ -124,15 +128,18 @@ def test_doc_steps_take_a_urdf_package_to_a_verdict(
     assert all(float(r["initial_jump"]) < 1e-6 for r in rows)  # the first waypoint is q0
     assert all(float(r["min_sigma"]) < 0.05 for r in rows)  # it does pass near the wrist
 
-    # 3. the study at tiny size: every generator's count set to 1
+    # 3. the study at tiny size: every generator's count set to 1, one batch of 6 tasks
     data = yaml.safe_load(text)
     for generator in data["generators"]:
         generator["count"] = 1
+    data["decide"] = {"budget_tasks": 6, "batch": 6}
     study_file.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     argv = shlex.split(study)[1:]
     assert main([*argv, "--workers", "1", "--quiet"]) == 0, capsys.readouterr().err
     report = (user_package / "results/jaco-study/study_report.md").read_text(encoding="utf-8")
     assert "### Verdict" in report and "Singular crossings" in report
+    decision = (user_package / "results/jaco-study/decision.md").read_text(encoding="utf-8")
+    assert "Budget spent: 6 of 6 tasks per robot" in decision or "Decided every kind" in decision
     for line in report.splitlines():  # an undecided group says what a decision would need
         if "none is to be preferred" in line:
             assert "needs about" in line or "same tasks" in line or "not expected" in line, line
@@ -148,11 +155,14 @@ def test_init_position_task_and_sizes(
     user_package: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     argv = ["init", "study", "--urdf", URDF, "--package-dir", ".", "--frame", "j2s6s200_link_6"]
-    assert main([*argv, "--task", "position", "--tasks", "13", "-o", "p.yaml"]) == 0
+    assert (
+        main([*argv, "--task", "position", "--tasks", "13", "--budget", "0", "-o", "p.yaml"]) == 0
+    )
     config = load_study(user_package / "p.yaml")
     assert config.robots[0].robot.params["task"] == "position"
     assert config.robots[0].task_weight is None
     assert "max_orientation_error" not in (user_package / "p.yaml").read_text(encoding="utf-8")
+    assert config.decide is None  # --budget 0: one batch of 13 tasks
     assert sum(g.count for g in config.generators) == 13
     # an existing file is kept without --force
     assert main([*argv, "-o", "p.yaml"]) == 2
@@ -196,6 +206,9 @@ BAD_INIT = {
     "five tasks": ({"--tasks": "5"}, None, "one task per generator at least"),
     "negative tasks": ({"--tasks": "-3"}, None, "--tasks: must be an integer"),
     "enormous tasks": ({"--tasks": "10000000000"}, None, "--tasks: must be an integer"),
+    "budget below a batch": ({"--budget": "30"}, None, "--budget: must be 0 (one batch) or"),
+    "negative budget": ({"--budget": "-1"}, None, "--budget: must be 0 (one batch) or"),
+    "enormous budget": ({"--budget": "100000000"}, None, "--budget: must be 0 (one batch) or"),
 }
 
 

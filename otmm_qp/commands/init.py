@@ -4,10 +4,11 @@ The arm is loaded first, exactly as the study will load it (``PinocchioArm`` wit
 ``package_dirs``, ``frame`` and ``locked_joints``), so a missing URDF, a mesh outside its
 package, an unknown frame or joint is one line and exit 2 before anything is written. The file
 lists the joint limits read from the URDF (position [rad or m], speed [rad/s or m/s]) in a
-comment, draws ``--tasks`` tasks over the six task generators in the proportions of the shipped
-arms study, compares a handful of the field's controllers, judges success by the arm's own
-speed limits, and is checked against the study schema before it is written (atomically; an
-existing file is kept unless ``--force``).
+comment, draws batches of ``--tasks`` tasks over the six task generators in the proportions of
+the shipped arms study until every kind of task is decided or ``--budget`` tasks are spent
+(a ``decide`` block, :mod:`otmm_qp.studies.decide`), compares a handful of the field's
+controllers, judges success by the arm's own speed limits, and is checked against the study
+schema before it is written (atomically; an existing file is kept unless ``--force``).
 """
 
 from __future__ import annotations
@@ -76,7 +77,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--locked-joints", nargs="+", default=[], metavar="JOINT", help="joints to lock (grippers)"
     )
-    parser.add_argument("--tasks", type=int, default=60, help="tasks to draw in all (default 60)")
+    parser.add_argument(
+        "--tasks", type=int, default=60, help="tasks per batch, split over the generators (60)"
+    )
+    parser.add_argument(
+        "--budget",
+        type=int,
+        default=600,
+        help="most tasks the study may run before it must decide (default 600; 0: one batch)",
+    )
     parser.add_argument("-o", "--out", default=None, help="file (default: <urdf name>-study.yaml)")
     parser.add_argument("--force", action="store_true", help="replace an existing file")
 
@@ -140,6 +149,12 @@ def study_text(arm: PinocchioArm, args: argparse.Namespace, name: str) -> str:
         for (kind, _, what, extra), count in zip(SHARES, counts, strict=True)
     )
     limits = "\n".join(limit_lines(arm))
+    decide = (
+        f"decide: {{budget_tasks: {args.budget}, batch: {sum(counts)}}}  # batches until each "
+        "kind of task\n#   has a row better than every other on success, or the budget is spent"
+        if args.budget
+        else "# decide: {budget_tasks: 600, batch: 60}  # instead of one batch: run until decided"
+    )
     return f"""\
 # A study of {name} written by `otmm-qp init study` ({arm.nv} joints, frame {arm.frame_name},
 # {args.task} task). Run it, then read the decision per kind of task:
@@ -165,8 +180,9 @@ success:
 robots:
   - name: {name}
     robot: {flow}{weight}
-generators:                       # {sum(counts)} tasks; raise the counts for firmer verdicts
+generators:                       # {sum(counts)} tasks per batch, in these proportions
 {generators}
+{decide}
 {CONTROLLERS}"""
 
 
@@ -184,6 +200,12 @@ def run(args: argparse.Namespace) -> int:
         )
     if not os.path.isfile(args.urdf):
         raise ConfigError("--urdf", f"file not found: {args.urdf}")
+    if args.budget and not args.tasks <= args.budget <= MAX_TASKS:
+        raise ConfigError(
+            "--budget",
+            f"must be 0 (one batch) or an integer in [--tasks = {args.tasks}, {MAX_TASKS}], "
+            f"got {args.budget}",
+        )
     for folder in args.package_dirs:
         if not os.path.isdir(folder):
             raise ConfigError("--package-dir", f"not a folder: {folder}")

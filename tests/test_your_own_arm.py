@@ -27,6 +27,8 @@ from otmm_qp.exceptions import RobotLoadError
 from otmm_qp.registry import check_parameters
 from otmm_qp.robots.urdf_meshes import check_meshes
 from otmm_qp.studies.group_verdict import main as group_verdict
+from otmm_qp.studies.limit_keeping import limit_breaks
+from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import load_study
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -138,6 +140,12 @@ def test_doc_steps_take_a_urdf_package_to_a_verdict(
     assert main([*argv, "--workers", "1", "--quiet"]) == 0, capsys.readouterr().err
     report = (user_package / "results/jaco-study/study_report.md").read_text(encoding="utf-8")
     assert "### Verdict" in report and "Singular crossings" in report
+    accuracy = next(ln for ln in report.splitlines() if ln.startswith("- **Accuracy"))
+    _, rows = load_rows(user_package / "results/jaco-study")
+    for name in rows.controllers():  # every named row that broke the limits says so
+        broken, total = limit_breaks(rows.rows, name)
+        if f" {name} " in accuracy and broken:
+            assert f"{name} " in accuracy and f"limits broken on {broken} of {total}" in accuracy
     decision = (user_package / "results/jaco-study/decision.md").read_text(encoding="utf-8")
     assert "Budget spent: 6 of 6 tasks per robot" in decision or "Decided every kind" in decision
     for line in report.splitlines():  # an undecided group says what a decision would need

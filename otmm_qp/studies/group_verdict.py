@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,7 @@ from otmm_qp.studies.fronts import (
     front_of,
     summary_table,
 )
+from otmm_qp.studies.limit_keeping import limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.report import (
     RESAMPLES,
@@ -95,8 +96,16 @@ def _verdict(row: RowFront) -> str:
     return "; ".join(out) or "no significant difference from the best others"
 
 
-def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
-    """Markdown: per kind of task the most accurate and the calmest front rows, and ours."""
+def kinds_table(
+    fronts: Sequence[GroupFront],
+    ours: str,
+    kinds: Mapping[str, list[dict[str, Any]]] | None = None,
+) -> list[str]:
+    """Markdown: per kind of task the most accurate and the calmest front rows, and ours.
+
+    With the rows of each kind (``kinds``, :func:`kind_rows`), the most accurate pick says in
+    its cell how often it broke the arm's limits (:mod:`otmm_qp.studies.limit_keeping`).
+    """
     heads = " / ".join(metric(m).label for m in fronts[0].objectives) if fronts else ""
     lines = [
         f"| task kind (tasks) | most accurate (medians {heads}) | lowest peak speed | `{ours}` "
@@ -108,7 +117,8 @@ def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
         for k in (0, 1):
             name = g.best_on(k)
             row = g.row(name) if name is not None else None
-            cells.append(f"{row.name} ({_medians(row)})" if row is not None else "–")
+            note = limits_clause(kinds.get(g.group, []), row.name) if kinds and row else ""
+            cells.append(f"{row.name} ({_medians(row)}){note}" if row is not None else "–")
         mine = g.row(ours)
         if mine is None:
             where = "did not run"
@@ -122,15 +132,23 @@ def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
     return lines
 
 
-def render(fronts: Sequence[GroupFront], ours: str, kinds: bool = False) -> str:
-    """The Markdown text: the counts, the summary (or kinds) table, then each group's details."""
+def render(
+    fronts: Sequence[GroupFront],
+    ours: str,
+    kinds: bool = False,
+    rows: Mapping[str, list[dict[str, Any]]] | None = None,
+) -> str:
+    """The Markdown text: the counts, the summary (or kinds) table, then each group's details.
+
+    ``rows``: each kind's rows, for the limits note of the kinds table.
+    """
 
     def mine(name: str) -> bool:
         return name == ours
 
     lines = [counts_sentence(fronts, mine), ""]
     if kinds:
-        return "\n".join(lines + kinds_table(fronts, ours))
+        return "\n".join(lines + kinds_table(fronts, ours, rows))
     lines += summary_table(fronts, mine) + [""]
     for g in fronts:
         lines += [f"### {g.robot} / {g.group}", "", *detail_table(g, mine), ""]
@@ -149,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         rows = load_rows(args.study)[1]
         check_highlight(rows, args.ours, "--ours")
         fronts = kind_fronts(rows) if args.kinds else study_fronts(rows)
-        text = render(fronts, args.ours, args.kinds)
+        text = render(fronts, args.ours, args.kinds, kind_rows(rows) if args.kinds else None)
     except OtmmError as error:
         print(f"group_verdict: error: {error}", file=sys.stderr)
         return 2

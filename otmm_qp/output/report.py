@@ -43,6 +43,7 @@ from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
 from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
+from otmm_qp.output.png import compact_png
 from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
 from otmm_qp.status import Status
@@ -406,13 +407,13 @@ def _html_ranking(rows: Sequence[Row]) -> list[str]:
 
 
 def _html_figures(results_dir: Path) -> list[str]:
-    """The figures section: each PNG of the folder embedded as base64."""
+    """The figures section: each PNG of the folder embedded as base64 (palette-compressed)."""
     parts = ['<h2 id="figures">Figures</h2>']
     figures = _figures(results_dir)
     if not figures:
         parts.append('<p class="note">No figures in this results folder.</p>')
     for figure in figures:
-        data = base64.b64encode(figure.read_bytes()).decode("ascii")
+        data = base64.b64encode(compact_png(figure.read_bytes())).decode("ascii")
         caption = escape(figure.relative_to(results_dir).as_posix())
         parts.append(
             f'<figure><img alt="{caption}" src="data:image/png;base64,{data}">'

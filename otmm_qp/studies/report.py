@@ -568,7 +568,14 @@ def _overview(config: StudyConfig, rows: Rows) -> list[str]:
         "",
         config.description,
         "",
-        f"{len(competitors)} episodes ({errors} errors) on {tasks} tasks; robots: "
+        f"{len(competitors)} controller episodes ({errors} errors)"
+        + (
+            f" + {len(rows.rows) - len(competitors)} offline references = {len(rows.rows)} "
+            "episodes stored (the count `otmm-qp study` prints)"
+            if len(rows.rows) > len(competitors)
+            else ""
+        )
+        + f" on {tasks} tasks; robots: "
         f"{', '.join(rows.robots())}; controllers: {len(rows.controllers())}; "
         f"loop modes: {', '.join(config.loop_modes)}; dt = {config.dt:g} s.",
         "",

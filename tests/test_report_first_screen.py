@@ -66,3 +66,39 @@ def test_first_screen_shows_the_claims_verdict(browser: Page, paper: Path) -> No
     assert geometry["row_bottom"] <= HEIGHT, geometry  # its first verdicts are on screen
     assert geometry["row_right"] <= geometry["view"], geometry  # evidence readable in place
     assert geometry["page_width"] <= geometry["view"], geometry  # no horizontal scroll
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny planar study with its reference: two rows, every generator once."""
+    folder = tmp_path_factory.mktemp("study")
+    config = folder / "s.yaml"
+    config.write_text(
+        "name: first-screen\nseed: 1\ndt: 0.02\nloop_modes: [clik]\nduration: {extra: 0.2}\n"
+        "success: {max_position_error: 0.02, max_joint_speed: 10.0}\n"
+        "robots:\n  - {name: planar2, robot: {type: planar, link_lengths: [1.0, 0.8]}}\n"
+        "generators:\n  - {type: near_singular, count: 2}\n  - {type: beyond_reach, count: 2}\n"
+        "controllers:\n  - {name: dls, backend: {type: dls, damping: 0.05}}\n"
+        "  - {name: qp, backend: {type: qp, solver: daqp}}\n",
+        encoding="utf-8",
+    )
+    out = folder / "out"
+    assert main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    return out
+
+
+def test_study_report_first_screen_shows_the_decision(browser: Page, study: Path) -> None:
+    markdown = (study / "study_report.md").read_text(encoding="utf-8")
+    assert markdown.index("## Decision per kind of task") < markdown.index("## Method")
+    browser.open((study / "study_report.html").resolve().as_uri())
+    geometry = browser.evaluate(
+        "(() => { const box = document.querySelector('.verdict');"
+        " const items = document.querySelectorAll('.verdict li');"
+        " const last = items.length ? items[items.length - 1].getBoundingClientRect() : null;"
+        " return {items: items.length, top: box ? box.getBoundingClientRect().top : 1e9,"
+        " bottom: last ? last.bottom : 1e9,"
+        " text: Array.from(items).map(i => i.innerText).join(' ')}; })()"
+    )
+    assert geometry["items"] >= 3, geometry  # the kinds of task and the accuracy line
+    assert geometry["top"] < HEIGHT / 3 and geometry["bottom"] <= HEIGHT, geometry
+    assert "Singular crossings" in geometry["text"], geometry

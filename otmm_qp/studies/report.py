@@ -489,7 +489,9 @@ def check_highlight(rows: Rows, highlight: str | None, option: str = "--highligh
 def render_markdown(
     config: StudyConfig, rows: Rows, figures: Sequence[str], highlight: str | None = None
 ) -> str:
-    """The Markdown report: overview, per robot verdicts → fronts → figure → causes → details.
+    """The Markdown report: the decision per kind of task first, then the method and details.
+
+    Per robot after the method: fronts → figure → causes → details.
 
     Args:
         config: The study record.
@@ -499,7 +501,13 @@ def render_markdown(
     """
     check_highlight(rows, highlight)
     fronts = study_fronts(rows)
-    out = _overview(config, rows)
+    overview = _overview(config, rows)
+    cut = overview.index(_criteria_text(config))
+    out = overview[:cut]  # title, description, counts; then the answer, then the method
+    out += ["## Decision per kind of task", ""]
+    for robot in rows.robots():
+        out += [f"### Verdict on {robot}", "", *_verdicts(rows, robot), ""]
+    out += ["## Method", "", *overview[cut:]]
     out += _fronts_overview(fronts, highlight)
     for robot in rows.robots():
         own = [f for f in fronts if f.robot == robot]
@@ -635,8 +643,11 @@ def _robot_section(
     fronts: Sequence[GroupFront] = (),
     highlight: str | None = None,
 ) -> list[str]:
-    """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
-    out = [f"## {robot}", "", "### Verdict", "", *_verdicts(rows, robot), ""]
+    """One robot: Pareto fronts, figure, failure causes, worst episodes, tables.
+
+    Its verdict lines open the report (``## Decision per kind of task``).
+    """
+    out = [f"## {robot}", ""]
     if fronts:
         out += [f"### Pareto fronts on {robot}", "", *summary_table(fronts, _ours(highlight)), ""]
     pareto = _pareto_path(robot)
@@ -995,7 +1006,7 @@ def render_html(config: StudyConfig, markdown: str, out: Path) -> str:
             parts.append(_figure_html(out, image.group(2), image.group(1)))
         elif line.startswith("#"):
             flush()
-            in_verdict = line.strip() == "### Verdict"
+            in_verdict = line.strip().startswith("### Verdict")
             chunk.append(line)
             flush()
         else:

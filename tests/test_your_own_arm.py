@@ -94,6 +94,14 @@ def test_doc_steps_take_a_urdf_package_to_a_verdict(
 ) -> None:
     commands = [line.strip() for block in doc_blocks("bash") for line in block.splitlines()]
     init, run, study, verdict = commands
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    own = readme[readme.index("## Your own arm") :]
+    own = own[: own.index("\n## ")]
+    assert re.findall(r"```bash\n(.*?)```", own, flags=re.S)[0].splitlines() == [
+        init,
+        study,
+        verdict,
+    ]  # the README's section runs the doc's commands
     assert init.startswith("otmm-qp init study ") and run.startswith("otmm-qp run ")
 
     # 1. init, verbatim: the limits comment is the URDF's, the file is a valid study

@@ -154,7 +154,10 @@ class PoseLineTrajectory(Trajectory):
             ArrayOf(Interval(Real, None, None, unit="rad"), length=3, per="roll, pitch, yaw"),
             None,
         ],
-        "end_quaternion": [ArrayOf(Interval(Real, -1, 1), length=4, per="x, y, z, w"), None],
+        "end_quaternion": [
+            ArrayOf(Interval(Real, None, None), length=4, per="x, y, z, w (normalised here)"),
+            None,
+        ],
         "profile": OneOf("quintic", "constant"),
     }
 
@@ -233,7 +236,10 @@ class PoseCircleTrajectory(Trajectory):
             ArrayOf(Interval(Real, None, None, unit="rad"), length=3, per="roll, pitch, yaw"),
             None,
         ],
-        "end_quaternion": [ArrayOf(Interval(Real, -1, 1), length=4, per="x, y, z, w"), None],
+        "end_quaternion": [
+            ArrayOf(Interval(Real, None, None), length=4, per="x, y, z, w (normalised here)"),
+            None,
+        ],
         "profile": OneOf("quintic", "constant"),
     }
 

@@ -295,3 +295,12 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
         found = re.search(pattern, text)
         assert found, f"the README sentence changed its form: {pattern}"
         assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern
+    # docs/studies.md states the same sizes next to its copies of the commands
+    studies = " ".join((ROOT / "docs" / "studies.md").read_text(encoding="utf-8").split())
+    for pattern, expected in (
+        (r"planar\.yaml --out results/planar-study # < 1 min, (\d+) episodes", (p_episodes,)),
+        (r"arms\.yaml --out results/arms-study # UR5 \+ Panda, ([\d,]+) episodes", (a_episodes,)),
+    ):
+        found = re.search(pattern, studies)
+        assert found, f"docs/studies.md changed its form: {pattern}"
+        assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern

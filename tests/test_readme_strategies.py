@@ -62,6 +62,11 @@ def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
     rows = load_rows(out)[1]
     fronts = {g.group: g for g in kind_fronts(rows)}
     assert kinds_table(list(fronts.values()), "sigma_lm", kind_rows(rows)) == table
+    broken, total = limit_breaks(kind_rows(rows)["singular crossings"], "OTMM-directional+pinv")
+    assert (
+        f"OTMM-directional + pinv is the most accurate but breaks the arm's speed or position "
+        f"limits on {broken} of the {total} tasks" in flat
+    )
     # every pick that failed the arm's speed or position limits says so in its cell
     for line in table[2:]:
         kind = line.split("|")[1].strip().rsplit(" (", 1)[0]

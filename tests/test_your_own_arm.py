@@ -180,6 +180,12 @@ def test_init_position_task_and_sizes(
     assert "max_orientation_error" not in (user_package / "p.yaml").read_text(encoding="utf-8")
     assert config.decide is None  # --budget 0: one batch of 13 tasks
     assert sum(g.count for g in config.generators) == 13
+    # a URDF file name that is no study name gives a safe one
+    spaced = user_package / "my jaco (v2).urdf"
+    spaced.write_text((user_package / URDF).read_text(encoding="utf-8"), encoding="utf-8")
+    argv2 = ["init", "study", "--urdf", str(spaced), "--frame", "j2s6s200_link_6", "-o", "q.yaml"]
+    assert main(argv2) == 0
+    assert load_study(user_package / "q.yaml").name == "my_jaco_v2"
     # an existing file is kept without --force
     assert main([*argv, "-o", "p.yaml"]) == 2
     assert "--force" in one_line_error(capsys)

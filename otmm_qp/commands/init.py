@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -216,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
         task=args.task,
         locked_joints=args.locked_joints or None,
     )
-    name = arm.name
+    name = re.sub(r"[^A-Za-z0-9_.+-]+", "_", arm.name).strip("_") or "arm"  # a study name
     out = Path(args.out) if args.out else Path(f"{name}-study.yaml")
     if out.exists() and not args.force:
         raise ConfigError("--out", f"{out} exists; give --force to replace it")

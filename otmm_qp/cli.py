@@ -27,7 +27,7 @@ from otmm_qp.runner import interrupt  # noqa: E402
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name (a new command: one entry).
-COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "pareto", "migrate")
+COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "pareto", "migrate", "init")
 #: Longest argument value quoted in an error line [characters].
 MAX_ERROR_LINE = 300
 
@@ -68,8 +68,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``otmm-qp`` console script."""
     parser, modules = _parser()
     arguments = list(sys.argv[1:] if argv is None else argv)
-    if not arguments:
-        arguments = ["run"]  # no command: the paper reproduction
+    if not arguments or (arguments[0].startswith("-") and arguments[0] not in ("-h", "--help")):
+        arguments = ["run", *arguments]  # no command: the paper reproduction (`otmm-qp --force`)
     normalise = getattr(modules.get(arguments[0]), "normalise", None)
     if normalise is not None:  # e.g. `study FILE` is `study run FILE`
         arguments = [arguments[0], *normalise(arguments[1:])]

@@ -199,7 +199,8 @@ def check_parameters(
     a rename) are refused with that line rather than as unknown, all of them at once.
 
     Raises:
-        ConfigError: Naming the unknown parameter and the allowed ones.
+        ConfigError: Naming the unknown parameter and the allowed ones, or a required
+            parameter that is missing.
         ParameterError: A removed parameter, with its replacement.
     """
     signature = inspect.signature(factory)
@@ -216,6 +217,14 @@ def check_parameters(
     if gone:  # renamed or removed: say what to write, for every such key at once
         rest = "".join(f"; {field}.{key}: {removed[key]}" for key in gone[1:])
         raise ParameterError(f"{field}.{gone[0]}", removed[gone[0]] + rest)
+    required = [
+        p.name
+        for p in signature.parameters.values()
+        if p.name in allowed and p.default is p.empty and p.name not in params
+    ]
+    if required:
+        names = ", ".join(required)
+        raise ConfigError(f"{field}.{required[0]}", f"required parameter missing (give {names})")
     for key in params:
         if key not in allowed:
             raise ConfigError(

@@ -37,6 +37,8 @@ def test_version_is_declared_once_in_pyproject() -> None:
 
 
 def test_ci_runs_lint_format_and_types_before_the_readme_test_command() -> None:
+    import tomllib
+
     root = Path(__file__).resolve().parents[1]
     steps = [
         line.strip()
@@ -47,8 +49,13 @@ def test_ci_runs_lint_format_and_types_before_the_readme_test_command() -> None:
         ".venv/bin/ruff check .",
         ".venv/bin/ruff format --check .",
         ".venv/bin/mypy",
-        ".venv/bin/pytest",
+        ".venv/bin/pytest --junitxml=.ci-first-pass.xml",  # the README's command, times kept
+        ".venv/bin/pytest -p randomly -q $FAST",  # again, re-shuffled, on the fastest files
     ]
+    # pytest-randomly (test extra) shuffles both passes; the second takes the fastest files
+    extra = tomllib.loads((root / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert any(spec.startswith("pytest-randomly") for spec in extra["test"])
+    assert "fast_subset.py .ci-first-pass.xml --budget 60" in (root / ".ci" / "run").read_text()
     install = next(
         line for line in (root / ".ci" / "run").read_text().splitlines() if "pip install" in line
     )

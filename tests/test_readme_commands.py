@@ -31,6 +31,7 @@ _STRATEGIES_TABLE = f"{_RUNS}::test_readme_strategies_table_is_regenerated"
 _PLANAR_NUMBERS = "tests/test_readme_numbers.py::test_planar_study_table_in_readme_is_regenerated"
 _RUN_REPORT = "tests/test_commands.py::test_run_then_report"
 _CI = "tests/test_packaging.py::test_ci_runs_lint_format_and_types_before_the_readme_test_command"
+_OWN_ARM = "tests/test_your_own_arm.py::test_doc_steps_take_a_urdf_package_to_a_verdict"
 
 # command (normalised) → (tests that run it, how their run differs / why not run as is)
 COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
@@ -70,6 +71,20 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
     "--highlight sigma_lm": (
         ("tests/test_readme_strategies.py::test_readme_strategies_table_is_regenerated",),
         "into tmp_path, --workers 1",
+    ),
+    "otmm-qp init study --urdf my_jaco_description/robots/kinova.urdf --package-dir . "
+    "--frame j2s6s200_end_effector --locked-joints j2s6s200_joint_finger_1 "
+    "j2s6s200_joint_finger_2 -o jaco-study.yaml": (
+        (_OWN_ARM,),
+        "verbatim, in a folder holding a copy of example-robot-data's Jaco as a user's package",
+    ),
+    "otmm-qp study jaco-study.yaml --out results/jaco-study": (
+        (_OWN_ARM,),
+        "--workers 1, every generator's count 1 and decide {budget_tasks: 6, batch: 6}",
+    ),
+    "otmm-qp study verdict results/jaco-study --ours qp --kinds": (
+        (_OWN_ARM,),
+        "verbatim, on the study above",
     ),
     "otmm-qp study verdict results/strategies-readme --ours sigma_lm --kinds": (
         ("tests/test_readme_strategies.py::test_readme_strategies_table_is_regenerated",),
@@ -278,8 +293,12 @@ def _plan_sizes(name: str) -> tuple[int, int, int]:
 
 
 def test_study_sizes_the_readme_states_are_the_plans() -> None:
-    """The sizes written next to the study commands, from the shipped files' plans (no runs)."""
-    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    """The sizes written next to the study commands, from the shipped files' plans (no runs).
+
+    The plants results moved to docs/plants.md: its sentence is checked there.
+    """
+    sources = ("README.md", "docs/plants.md")
+    text = " ".join(" ".join((ROOT / s).read_text(encoding="utf-8").split()) for s in sources)
     (p_episodes, p_tasks, p_rows), (a_episodes, a_tasks, a_rows), (l_episodes, l_tasks, l_rows) = (
         _plan_sizes(n) for n in ("planar", "arms", "plants")
     )
@@ -297,4 +316,13 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
     for pattern, expected in checks:
         found = re.search(pattern, text)
         assert found, f"the README sentence changed its form: {pattern}"
+        assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern
+    # docs/studies.md states the same sizes next to its copies of the commands
+    studies = " ".join((ROOT / "docs" / "studies.md").read_text(encoding="utf-8").split())
+    for pattern, expected in (
+        (r"planar\.yaml --out results/planar-study # < 1 min, (\d+) episodes", (p_episodes,)),
+        (r"arms\.yaml --out results/arms-study # UR5 \+ Panda, ([\d,]+) episodes", (a_episodes,)),
+    ):
+        found = re.search(pattern, studies)
+        assert found, f"docs/studies.md changed its form: {pattern}"
         assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern

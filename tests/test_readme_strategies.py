@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.cli import main
-from otmm_qp.studies.group_verdict import kind_fronts, kinds_table
+from otmm_qp.studies.group_verdict import kind_fronts, kind_rows, kinds_table
+from otmm_qp.studies.limit_keeping import limit_breaks
 from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import load_study, plan_study
 
@@ -58,8 +59,20 @@ def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
     for name, size in (("strategies_arms.yaml", 192), ("strategies_planar.yaml", 136)):
         plan = plan_study(load_study(STUDIES / name))
         assert len({(e.robot, e.generator, e.task_index) for e in plan.episodes}) == size
-    fronts = {g.group: g for g in kind_fronts(load_rows(out)[1])}
-    assert kinds_table(list(fronts.values()), "sigma_lm") == table
+    rows = load_rows(out)[1]
+    fronts = {g.group: g for g in kind_fronts(rows)}
+    assert kinds_table(list(fronts.values()), "sigma_lm", kind_rows(rows)) == table
+    broken, total = limit_breaks(kind_rows(rows)["singular crossings"], "OTMM-directional+pinv")
+    assert (
+        f"OTMM-directional + pinv is the most accurate but breaks the arm's speed or position "
+        f"limits on {broken} of the {total} tasks" in flat
+    )
+    # every pick that failed the arm's speed or position limits says so in its cell
+    for line in table[2:]:
+        kind = line.split("|")[1].strip().rsplit(" (", 1)[0]
+        accurate = line.split("|")[2].strip().split(" (", 1)[0]
+        broken, total = limit_breaks(kind_rows(rows)[kind], accurate)
+        assert (f"(limits broken on {broken} of {total} tasks)" in line) == (broken > 0), line
     assert all(g.best_on_all is None for g in fronts.values())  # none on top of all three
     assert all("sigma_lm" not in (g.best_on(0), g.best_on(1)) for g in fronts.values())
     assert all(g.best_on(1) == "dls_error" for g in fronts.values())  # the calm end

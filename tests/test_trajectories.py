@@ -47,7 +47,7 @@ def test_circle_starts_nearest_the_start_and_turns_clockwise() -> None:
 
 
 def test_bad_parameters() -> None:
-    with pytest.raises(ParameterError, match="radius: must be > 0"):
+    with pytest.raises(ParameterError, match=r"radius: must be (a finite number )?> 0"):
         CircleTrajectory(np.zeros(2), [0, 0], -1.0, 1.0)
-    with pytest.raises(ParameterError, match="direction: must be clockwise or counterclockwise"):
+    with pytest.raises(ParameterError, match="direction: must be .?clockwise.? or .?counter"):
         CircleTrajectory(np.zeros(2), [0, 0], 1.0, 1.0, "sideways")  # type: ignore[arg-type]

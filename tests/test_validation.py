@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from otmm_qp import registry
 from otmm_qp.cli import main
+from otmm_qp.commands.list import reserved_parameters
 from otmm_qp.exceptions import ConfigError, ParameterError
 from otmm_qp.validation import (
     ArrayOf,
@@ -260,17 +261,8 @@ def test_removed_parameters_are_refused_with_their_replacement() -> None:
 
 # --- every built-in plugin ------------------------------------------------------------------
 
-#: The groups whose built-ins declare their parameters (robots, trajectories and task
-#: generators are validated by their config models).
-DECLARING_GROUPS = (
-    registry.FILTERS,
-    registry.P_FUNCTIONS,
-    registry.BACKENDS,
-    registry.LIMITS,
-    registry.PLANTS,
-    registry.CONDITIONING,
-)
-RESERVED = {registry.P_FUNCTIONS: ("s", "sigma_s")}
+#: Every plugin group: the built-ins of each declare their parameters.
+DECLARING_GROUPS = registry.GROUPS
 BUILT_INS = [
     (group, name)
     for group in DECLARING_GROUPS
@@ -288,7 +280,7 @@ def test_every_group_has_built_ins() -> None:
 def test_declarations_are_exactly_the_constructor_parameters(group: str, name: str) -> None:
     """Declared names == constructor parameters, and every default satisfies its declaration."""
     plugin = registry.load(group, name)
-    reserved = RESERVED.get(group, ())
+    reserved = reserved_parameters(group, plugin)
     assert declaration_problems(plugin, reserved) == []
     declared = constraints_of(plugin)
     assert declared is not None

@@ -38,13 +38,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def reserved_parameters(group: str, plugin: object) -> tuple[str, ...]:
+    """Parameters the framework passes ``plugin`` itself (a trajectory's ``start``, ...)."""
+    return (*RESERVED.get(group, ()), *getattr(plugin, "framework_parameters", ()))
+
+
 def parameter_lines(group: str, name: str) -> list[str]:
     """The indented ``name = default: allowed`` lines of one plugin (or why it cannot load)."""
     try:
         plugin = registry.load(group, name)
     except OtmmError as error:
         return [f"      (cannot be loaded: {error})"]
-    rows = parameters(plugin, RESERVED.get(group, ()))
+    rows = parameters(plugin, reserved_parameters(group, plugin))
     lines = [f"      {row.name} = {row.default}: {row.allowed}" for row in rows]
     lines += [
         f"      {change.key} (meaning changed in schema {change.version}): now {change.now}; "

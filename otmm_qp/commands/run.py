@@ -67,11 +67,11 @@ def run(args: argparse.Namespace) -> int:
     out_dir = out if out is not None else Path("results") / safe_name(suite.name)
     with claim_results_dir(out_dir, force=args.force) as out_dir:
         hook = None
+        progress = None if args.quiet else sys.stderr
         if figures != "none":
             from otmm_qp.output.figures import figure_hook
 
-            hook = figure_hook(suite.metrics.sigma_s, per_run=figures == "all")
-        progress = None if args.quiet else sys.stderr
+            hook = figure_hook(suite.metrics.sigma_s, per_run=figures == "all", progress=progress)
         outcome = run_suite(
             suite,
             ResultsWriter(out_dir),

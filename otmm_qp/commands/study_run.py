@@ -61,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
 
     given = check_out_argument(args.out) if args.out is not None else None
     config = load_study(args.file)
+    if config.decide is not None:  # batches until decided: the folder holds the full budget
+        from otmm_qp.studies.decide import budget_config
+
+        config = budget_config(config, config.decide)
     plan = plan_study(config, str(args.file))
     out = given if given is not None else Path("results") / safe_name(config.name)
     names = [c.name for c in plan.controllers]
@@ -71,7 +75,13 @@ def run(args: argparse.Namespace) -> int:
         )
     for name, reason in plan.skipped:
         print(f"otmm-qp: skipped controller {name}: {reason}", file=sys.stderr)
-    if args.quiet:
+    if config.decide is not None:
+        from otmm_qp.studies.decide import run_decided_study
+
+        outcome = run_decided_study(
+            plan, config.decide, out, str(args.file), args.workers, args.scheduler, args.force
+        )
+    elif args.quiet:
         outcome = run_study(plan, out, str(args.file), args.workers, args.scheduler, args.force)
     else:
         outcome = _run_with_progress(plan, out, args)

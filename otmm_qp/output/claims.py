@@ -4,13 +4,13 @@ Nothing here is written by hand: each verdict is computed from the runs, per loo
 
 Criteria (stated once, applied to every controller alike). For an experiment and loop mode:
 
-* the *nominal speed* :math:`v_{nom}` is the median, over the controllers that move, of the peak
-  joint speed :math:`\max\|\dot q\|_\infty` **outside** the singular window — what the task
+* the *nominal speed* ``v_nom`` is the median, over the controllers that move, of the peak
+  joint speed ``max ‖q̇‖∞`` **outside** the singular window — what the task
   itself needs;
 * a run **breaks** when it blows up (non-finite or above ``blow_up_speed``) or its peak joint
-  speed exceeds :math:`5\,v_{nom}`;
+  speed exceeds ``5 v_nom``;
 * a run **chatters** when, inside the singular window (``window`` seconds around the minimum of
-  σ_min), one step changes a joint speed by more than :math:`0.5\,v_{nom}` — half the nominal
+  σ_min), one step changes a joint speed by more than ``0.5 v_nom`` — half the nominal
   speed within a single control period;
 * a claim about the singular window is **not exercised** when σ_min never drops below σ_S
   (no filter acts, every controller is the same pseudoinverse).

@@ -23,11 +23,12 @@ import ctypes.util
 import multiprocessing
 import os
 import signal
+import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -756,7 +757,12 @@ def _draw_all(jobs: list[_Job], workers: int) -> None:
         interrupt.check()
 
 
-def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None) -> ExperimentHook:
+def figure_hook(
+    sigma_s: float,
+    per_run: bool = True,
+    workers: int | None = None,
+    progress: TextIO | None = None,
+) -> ExperimentHook:
     """An ``after_experiment`` hook for :func:`otmm_qp.runner.run_suite` that draws figures.
 
     Writes ``out_dir/<experiment>/<loop_mode>/<controller-slug>.png`` per run (when
@@ -769,6 +775,7 @@ def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None
         sigma_s: Threshold σ_S drawn on the σ_min panels.
         per_run: Also write one figure per run.
         workers: Drawing processes; None: up to 2, bounded by the CPU count. 1: serial.
+        progress: Where to write one line per experiment's figures (count, seconds), or None.
 
     Returns:
         The hook.
@@ -800,7 +807,16 @@ def figure_hook(sigma_s: float, per_run: bool = True, workers: int | None = None
                 for result in results:
                     path = folder / f"{stems[result.controller]}.png"
                     runs.append(("run", (result, path, sigma_s)))
+        tic = time.perf_counter()
         _draw_all(comparisons + runs, workers)  # the larger comparisons first
+        if progress is not None:
+            seconds = time.perf_counter() - tic
+            print(
+                f"  figures: {name}: {len(comparisons)} comparisons + {len(runs)} runs "
+                f"in {seconds:.1f} s",
+                file=progress,
+                flush=True,
+            )
 
     return after_experiment
 

@@ -25,7 +25,8 @@ td.bad{color:#a4262c}td.name{white-space:normal;min-width:7rem;max-width:14rem}t
 figure img{max-width:100%;border:1px solid #e5e7eb}figcaption{font-size:.85rem;color:#4b5563}
 .claims{background:#f8fafc;border-left:4px solid #2b5797;padding:.4rem 1rem}
 code{background:#eef2f7;padding:0 .25rem;border-radius:3px}
-#ranking-table td:nth-child(2){text-align:left}.claims table{font-size:.8rem}
+#ranking-table td:nth-child(2){text-align:left}.claims table{font-size:.8rem;width:100%}
+.claims td,.claims th{white-space:normal;text-align:left;overflow-wrap:anywhere}
 .scroll{overflow-x:auto}
 """
 

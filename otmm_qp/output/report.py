@@ -8,9 +8,10 @@ Sections:
 
 1. **Comparison tables**, one per scenario (experiment × loop mode), columns
    :data:`REPORT_COLUMNS`; in each column the best value (all lower-is-better) is marked
-   (``**bold**`` in Markdown, ``<td class="best">`` in HTML). Runs that stopped early or
-   blew up are not eligible for "best"; skipped runs (a missing peer) are listed with their
-   install hint.
+   (``**bold**`` in Markdown, ``<td class="best">`` in HTML) when no other row shares it.
+   Runs that stopped early, blew up or left the arm's limits are not eligible for "best"
+   (the row says which limit, on how many steps); skipped runs (a missing peer) are listed
+   with their install hint.
 2. **Ranking** across scenarios by the *mean rank score*:
 
    .. math::
@@ -21,8 +22,11 @@ Sections:
    :data:`RANKED_METRICS`, and :math:`\text{rank}_{s,m}` its 1-based rank among the
    controllers of scenario ``s`` on metric ``m`` (ties share the lower rank; a run that blew
    up or stopped early ranks last). Lower is better. Controllers are identified by name.
-3. **Claims verdict** (``claims.md``, verbatim).
-4. **Figures**.
+   Controllers that broke the arm's joint speed or position limits (``velocity_violations``,
+   ``position_violations``) rank after those that kept them, and are never "best".
+
+Before them, first on the page: the **claims verdict** (``claims.md``, verbatim; its
+evidence column wraps, so it reads without horizontal scrolling). Last: the **figures**.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
 from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
+from otmm_qp.output.png import compact_png
 from otmm_qp.output.replays import find_replays
 from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
@@ -54,6 +59,7 @@ REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = columns(
     "chattering",
     "max_jump",
     "position_violations",
+    "velocity_violations",
     "step_time_median_us",
 )
 #: Metrics entering the ranking score.
@@ -86,9 +92,30 @@ class Row:
         return self.steps > 0 and 2 * self.stuck_steps > self.steps
 
     @property
+    def limit_steps(self) -> tuple[int, int]:
+        """Steps above a joint's own speed limit, and outside its position limits."""
+        speed, position = (
+            self.values.get(k, math.nan) for k in ("velocity_violations", "position_violations")
+        )
+        return (
+            int(speed) if math.isfinite(speed) else 0,
+            int(position) if math.isfinite(position) else 0,
+        )
+
+    @property
+    def breaks_limits(self) -> bool:
+        """A joint left its speed or position limits on some step (the arm's own limits)."""
+        return any(self.limit_steps)
+
+    @property
     def eligible(self) -> bool:
-        """Completed, no blow-up, not mostly stuck: may hold a best value."""
-        return not self.error_message and not self.blow_up and not self.stuck
+        """Completed, no blow-up, not mostly stuck, within the arm's limits: may be "best"."""
+        return (
+            not self.error_message
+            and not self.blow_up
+            and not self.stuck
+            and (not self.breaks_limits)
+        )
 
 
 def _number(text: str | None) -> float:
@@ -153,18 +180,23 @@ def group_scenarios(rows: Sequence[Row]) -> dict[tuple[str, str], list[Row]]:
 def best_values(rows: Sequence[Row]) -> dict[str, float]:
     """Smallest finite value of each column among eligible rows.
 
-    NaN (nothing marked) when no row is eligible or all eligible rows tie.
+    NaN (nothing marked) when no row is eligible or the smallest value is shared: a tie is a
+    tie, not a "best".
     """
     best: dict[str, float] = {}
     for key, _, _ in REPORT_COLUMNS:
         values = [r.values[key] for r in rows if r.eligible and math.isfinite(r.values[key])]
-        tie = len(values) > 1 and min(values) == max(values)
+        tie = values.count(min(values)) > 1 if values else False
         best[key] = min(values) if values and not tie else math.nan
     return best
 
 
 def ranking(rows: Sequence[Row]) -> list[tuple[str, float, int]]:
-    """``(controller, score, scenarios)`` sorted by the mean rank score (see module doc)."""
+    """``(controller, score, scenarios)`` sorted by the mean rank score (see module doc).
+
+    Controllers that kept the arm's limits in every scenario come first; those that broke a
+    speed or position limit follow (:func:`limit_note` says where), each part by score.
+    """
     totals: dict[str, list[float]] = {}
     scenario_count: dict[str, int] = {}
     for group in group_scenarios(rows).values():
@@ -182,7 +214,27 @@ def ranking(rows: Sequence[Row]) -> list[tuple[str, float, int]]:
                 rank = ordered.index(key(row)) + 1
                 totals.setdefault(row.controller, []).append(float(rank))
     table = [(c, sum(v) / len(v), scenario_count[c]) for c, v in totals.items()]
-    return sorted(table, key=lambda item: (item[1], item[0]))
+    broke = {r.controller for r in rows if not r.skipped and r.breaks_limits}
+    return sorted(table, key=lambda item: (item[0] in broke, item[1], item[0]))
+
+
+def limit_note(rows: Sequence[Row], controller: str) -> str:
+    """Where ``controller`` broke the arm's limits, or ``kept`` when it never did.
+
+    E.g. ``broken: speed on 246 of 500 steps in 1 of 2 scenarios``.
+    """
+    own = [r for r in rows if r.controller == controller and not r.skipped]
+    broken = [r for r in own if r.breaks_limits]
+    if not broken:
+        return "kept"
+    speed = sum(r.limit_steps[0] for r in broken)
+    position = sum(r.limit_steps[1] for r in broken)
+    steps = sum(r.steps for r in broken)
+    what = [f"speed on {speed}" if speed else "", f"position on {position}" if position else ""]
+    return (
+        f"broken: {' and '.join(w for w in what if w)} of {steps} steps "
+        f"in {len(broken)} of {len(own)} scenarios"
+    )
 
 
 def _format(value: float, spec: str) -> str:
@@ -208,9 +260,12 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
     """The Markdown report (figures linked relative to ``results_dir``)."""
     lines = [f"# Comparison report: {results_dir.name}", ""]
     lines.append(
-        "Best value per column in **bold** (all columns: lower is better; runs that blew up "
-        "or stopped early are not eligible). Metric definitions: `otmm_qp/metrics/metrics.py`."
+        "Best value per column in **bold** (all columns: lower is better; a shared smallest "
+        "value is a tie, not marked; runs that blew up, stopped early or broke the arm's joint "
+        "limits are not eligible). Metric definitions: `otmm_qp/metrics/metrics.py`."
     )
+    lines += ["", "## Claims verdict", ""]
+    lines.append(_demote_headings(claims) if claims else "_No claims.md in this results folder._")
     lines += ["", "## Comparison per scenario"]
     for (experiment, mode), group in group_scenarios(rows).items():
         best = best_values(group)
@@ -235,13 +290,17 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
     lines.append(
         "Score = mean rank over scenarios and the metrics "
         + ", ".join(f"`{m}`" for m in RANKED_METRICS)
-        + " (1 = best; blown-up or stopped runs rank last). Lower is better."
+        + " (1 = best; blown-up or stopped runs rank last). Lower is better. Controllers that "
+        "broke the arm's joint speed or position limits rank after those that kept them."
     )
-    lines += ["", "| rank | controller | score | scenarios |", "|---:|---|---:|---:|"]
+    lines += [
+        "",
+        "| rank | controller | score | scenarios | arm's limits |",
+        "|---:|---|---:|---:|---|",
+    ]
     for place, (controller, score, count) in enumerate(ranking(rows), start=1):
-        lines.append(f"| {place} | {controller} | {score:.2f} | {count} |")
-    lines += ["", "## Claims verdict", ""]
-    lines.append(_demote_headings(claims) if claims else "_No claims.md in this results folder._")
+        note = limit_note(rows, controller)
+        lines.append(f"| {place} | {controller} | {score:.2f} | {count} | {note} |")
     lines += ["", "## Figures", ""]
     figures = _figures(results_dir)
     if not figures:
@@ -259,6 +318,20 @@ def _status_note(row: Row) -> str:
 
 
 def _stop_note(row: Row) -> str:
+    speed, position = row.limit_steps
+    broke = [
+        f"speed limit on {speed}" if speed else "",
+        f"position limit on {position}" if position else "",
+    ]
+    limits = (
+        f" (breaks the {' and the '.join(b for b in broke if b)} of {row.steps} steps)"
+        if row.breaks_limits and not (row.blow_up or row.stuck or row.error_message)
+        else ""
+    )
+    return _run_note(row) + limits
+
+
+def _run_note(row: Row) -> str:
     if row.blow_up:
         return " (blow-up)"
     if row.stuck:
@@ -317,29 +390,31 @@ def _html_ranking(rows: Sequence[Row]) -> list[str]:
     parts.append(
         '<p class="note">Score = mean rank over scenarios and the metrics '
         + ", ".join(f"<code>{m}</code>" for m in RANKED_METRICS)
-        + " (1 = best; blown-up or stopped runs rank last). Lower is better.</p>"
+        + " (1 = best; blown-up or stopped runs rank last). Lower is better. Controllers that "
+        "broke the arm's joint speed or position limits rank after those that kept them.</p>"
     )
     table = [
         '<table id="ranking-table"><tr><th>rank</th><th>controller</th><th>score</th>'
-        "<th>scenarios</th></tr>"
+        "<th>scenarios</th><th>arm's limits</th></tr>"
     ]
     for place, (controller, score, count) in enumerate(ranking(rows), start=1):
+        note = limit_note(rows, controller)
         table.append(
             f"<tr><td>{place}</td><td>{escape(controller)}</td><td>{score:.2f}</td>"
-            f"<td>{count}</td></tr>"
+            f"<td>{count}</td><td>{escape(note)}</td></tr>"
         )
     parts.append("".join(table) + "</table>")
     return parts
 
 
 def _html_figures(results_dir: Path) -> list[str]:
-    """The figures section: each PNG of the folder embedded as base64."""
+    """The figures section: each PNG of the folder embedded as base64 (palette-compressed)."""
     parts = ['<h2 id="figures">Figures</h2>']
     figures = _figures(results_dir)
     if not figures:
         parts.append('<p class="note">No figures in this results folder.</p>')
     for figure in figures:
-        data = base64.b64encode(figure.read_bytes()).decode("ascii")
+        data = base64.b64encode(compact_png(figure.read_bytes())).decode("ascii")
         caption = escape(figure.relative_to(results_dir).as_posix())
         parts.append(
             f'<figure><img alt="{caption}" src="data:image/png;base64,{data}">'
@@ -371,6 +446,16 @@ def _html_replays(results_dir: Path) -> list[str]:
     return parts
 
 
+def _html_claims(claims: str | None) -> list[str]:
+    """The claims verdict, first on the page (what the reproduction found)."""
+    if not claims:
+        return ['<h2 id="claims">Claims verdict</h2>', '<p class="note">No claims.md.</p>']
+    return [
+        '<h2 id="claims">Claims verdict</h2>',
+        f'<div class="claims">{markdown_to_html(claims)}</div>',
+    ]
+
+
 def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> str:
     """The self-contained HTML report."""
     title = f"Comparison report: {results_dir.name}"
@@ -379,18 +464,15 @@ def render_html(results_dir: Path, rows: Sequence[Row], claims: str | None) -> s
         '<html lang="en"><head><meta charset="utf-8">',
         f"<title>{escape(title)}</title><style>{REPORT_CSS}</style></head><body>",
         f"<h1>{escape(title)}</h1>",
-        '<p class="note">Best value per column highlighted (all columns: lower is better; '
-        "runs that blew up or stopped early are not eligible). Metric definitions: "
+        *_html_claims(claims),
+        '<p class="note">Best value per column highlighted (all columns: lower is better; a '
+        "shared smallest value is a tie, not marked; runs that blew up, stopped early or broke "
+        "the arm's joint limits are not eligible). Metric definitions: "
         "<code>otmm_qp/metrics/metrics.py</code>.</p>",
         '<h2 id="tables">Comparison per scenario</h2>',
     ]
     parts += _html_tables(rows)
     parts += _html_ranking(rows)
-    parts.append('<h2 id="claims">Claims verdict</h2>')
-    if claims:
-        parts.append(f'<div class="claims scroll">{markdown_to_html(claims)}</div>')
-    else:
-        parts.append('<p class="note">No claims.md in this results folder.</p>')
     parts += _html_replays(results_dir)
     parts += _html_figures(results_dir)
     parts.append("</body></html>")

@@ -11,7 +11,8 @@ import os
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -19,6 +20,8 @@ import pinocchio as pin
 from otmm_qp.exceptions import DimensionError, FrameNotFound, ParameterError, RobotLoadError
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot, TaskKind
+from otmm_qp.robots.urdf_meshes import check_meshes
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval, OneOf
 
 
 @dataclass(frozen=True)
@@ -167,6 +170,43 @@ class PinocchioArm(Robot):
         DimensionError: An override has the wrong shape.
     """
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "name": [InstanceOf((str,), f"an example-robot-data arm: {', '.join(sorted(ARMS))}"), None],
+        "urdf": [InstanceOf((str, os.PathLike), "a path to a .urdf file"), None],
+        "package_dirs": [
+            InstanceOf(
+                (list, tuple),
+                "a list of folders where the URDF package:// meshes are found",
+                exclude=(str,),
+            ),
+            None,
+        ],
+        "frame": [InstanceOf((str,), "the name of a frame (link) of the URDF"), None],
+        "task": OneOf("pose", "position"),
+        "position_limits": [
+            InstanceOf(
+                (list, tuple, np.ndarray),
+                "a list of [lower, upper] [rad or m] per joint",
+                exclude=(str,),
+            ),
+            None,
+        ],
+        "velocity_limits": [
+            ArrayOf(
+                Interval(Real, 0, None, closed="neither", unit="rad/s", inf_ok=True), per="joint"
+            ),
+            None,
+        ],
+        "locked_joints": [
+            InstanceOf(
+                (list, tuple, Mapping),
+                "a list of joint names (locked at neutral) or {joint: value [rad or m]}",
+                exclude=(str,),
+            ),
+            None,
+        ],
+    }
+
     def __init__(
         self,
         name: str | None = None,
@@ -185,6 +225,8 @@ class PinocchioArm(Robot):
         self.urdf_path: str | None = source.urdf_path
         self.package_dirs: list[str] = source.package_dirs
         self.task_kind = task
+        if urdf is not None:  # a user's package: its meshes stay inside it
+            check_meshes(source.urdf_path, source.package_dirs)
         try:
             full = pin.buildModelFromUrdf(source.urdf_path)
         except (RuntimeError, ValueError) as error:

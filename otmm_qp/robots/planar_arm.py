@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.peer_description import PeerDescription
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval
 
 #: Name of the end-effector frame (URDF link) / site (MJCF) of generated planar models.
 PLANAR_FRAME = "ee"
@@ -29,6 +32,24 @@ class PlanarArm(Robot):
             unbounded when omitted.
         velocity_limits: Optional joint speed limits [rad/s], shape ``(m,)``; inf when omitted.
     """
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "link_lengths": ArrayOf(Interval(Real, 0, None, closed="neither", unit="m"), per="link"),
+        "limits": [
+            InstanceOf(
+                (list, tuple, np.ndarray),
+                "a list of [lower, upper] [rad] per joint",
+                exclude=(str,),
+            ),
+            None,
+        ],
+        "velocity_limits": [
+            ArrayOf(
+                Interval(Real, 0, None, closed="neither", unit="rad/s", inf_ok=True), per="joint"
+            ),
+            None,
+        ],
+    }
 
     task_kind = "position"
 

@@ -21,6 +21,7 @@ from otmm_qp.exceptions import (
     DimensionError,
     OtmmError,
     PeerUnavailable,
+    PluginNotFound,
     UnreachableTrajectory,
 )
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -108,8 +109,13 @@ def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field
             raise UnreachableTrajectory(field, f"is not finite at t = {t:.3g} s")
         if not robot.can_reach(x):
             point = np.round(task_position(np.asarray(x)), 4).tolist()
+            reach = getattr(robot, "reach", getattr(robot, "reach_max", None))
+            within = f" (reach {float(reach):.3g} m)" if isinstance(reach, float | int) else ""
             raise UnreachableTrajectory(
-                field, f"point {point} at t = {t:.3g} s is outside the workspace of {robot.name}"
+                field,
+                f"point {point} at t = {t:.3g} s is outside the workspace of {robot.name}"
+                f"{within}; to run a motion past the reach on purpose, set out_of_reach: true "
+                "on the experiment",
             )
 
 
@@ -186,14 +192,28 @@ def start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> F
         raise ConfigError(f"{field}.q0", message) from error
 
 
-def build_trajectory(config: ExperimentConfig, field: str, x0: FloatArray) -> Trajectory:
-    """The experiment's trajectory from the registry, starting at ``x0``."""
+def build_trajectory(
+    config: ExperimentConfig,
+    field: str,
+    x0: FloatArray,
+    robot: Robot | None = None,
+    q0: FloatArray | None = None,
+) -> Trajectory:
+    """The experiment's trajectory from the registry, starting at ``x0 = f(q0)``.
+
+    ``robot`` and ``q0`` are passed to a trajectory that lists them in its
+    ``framework_parameters`` (e.g. ``joint_waypoints``).
+    """
+    field = f"{field}.trajectory"
+    try:
+        factory = registry.load(registry.TRAJECTORIES, config.trajectory.type)
+    except PluginNotFound as error:
+        raise ConfigError(field, str(error)) from error
+    wanted = getattr(factory, "framework_parameters", ("start",))
+    given = {"start": x0, "robot": robot, "q0": q0}
+    framework = {name: value for name, value in given.items() if name in wanted}
     trajectory: Trajectory = registry.create(
-        registry.TRAJECTORIES,
-        config.trajectory.type,
-        config.trajectory.params,
-        f"{field}.trajectory",
-        start=x0,
+        registry.TRAJECTORIES, config.trajectory.type, config.trajectory.params, field, **framework
     )
     return trajectory
 

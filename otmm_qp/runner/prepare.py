@@ -162,7 +162,7 @@ def prepare_experiment(
     field_path = f"{source}: experiments.{index}"
     robot = load_robot(config.robot, f"{field_path}.robot")
     q0 = start_configuration(robot, config, field_path)
-    trajectory = build_trajectory(config, field_path, robot.forward(q0))
+    trajectory = build_trajectory(config, field_path, robot.forward(q0), robot, q0)
     duration = config.duration if config.duration is not None else trajectory.duration
     duration_field = (
         f"{field_path}.duration" if config.duration is not None else f"{field_path}.trajectory"

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -17,6 +19,7 @@ from otmm_qp.scenarios.search import (
     sigma_min_at,
 )
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 
 class BeyondReachGenerator(TaskGenerator):
@@ -37,9 +40,21 @@ class BeyondReachGenerator(TaskGenerator):
 
     name = "beyond_reach"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "overshoot": ArrayOf(
+            Interval(Real, 1, None, closed="neither"),
+            length=2,
+            per="end of [low, high], a multiple of the reach",
+        ),
+        "duration": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), length=2, per="end of [low, high]"
+        ),
+    }
+
     def __init__(
         self, overshoot: Sequence[float] = (1.02, 1.2), duration: Sequence[float] = (2.0, 3.0)
     ) -> None:
+        check_params(self, locals())
         self.overshoot = check_range("overshoot", overshoot, lower=1.0)
         if not self.overshoot[0] > 1.0:
             raise ParameterError("overshoot", f"must be > 1, got {list(overshoot)}")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Integral, Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from otmm_qp.scenarios.search import (
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.pose import PoseCircleTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 #: Random configurations sampled to estimate the outer radius (deterministic seed).
 RADIUS_SAMPLES = 400
@@ -69,6 +71,26 @@ class BoundaryGenerator(TaskGenerator):
 
     name = "boundary"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "radius_fraction": ArrayOf(
+            Interval(Real, 0, 1, closed="right"),
+            length=2,
+            per="end of [low, high], a fraction of the reach",
+        ),
+        "elevation": ArrayOf(
+            Interval(Real, -math.pi / 2, None, unit="rad"), length=2, per="end of [low, high]"
+        ),
+        "sweep": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="rad"),
+            length=2,
+            per="end of [low, high]",
+        ),
+        "duration": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), length=2, per="end of [low, high]"
+        ),
+        "attempts": Interval(Integral, 1, None),
+    }
+
     def __init__(
         self,
         radius_fraction: Sequence[float] = (0.85, 0.97),
@@ -77,6 +99,7 @@ class BoundaryGenerator(TaskGenerator):
         duration: Sequence[float] = (2.0, 3.0),
         attempts: int = 20,
     ) -> None:
+        check_params(self, locals())
         self.radius_fraction = check_range("radius_fraction", radius_fraction)
         if not (0.0 < self.radius_fraction[0] and self.radius_fraction[1] <= 1.0):
             raise ParameterError("radius_fraction", f"must lie in (0, 1], got {radius_fraction}")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from numbers import Integral, Real
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -12,6 +14,7 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task, TaskGenerator
 from otmm_qp.scenarios.search import position_of, random_coordinates, sigma_min_at
 from otmm_qp.trajectories.held_targets import HeldTargetsTrajectory
+from otmm_qp.validation import Constraints, Interval, check_params
 
 
 class HeldTargetGenerator(TaskGenerator):
@@ -32,7 +35,13 @@ class HeldTargetGenerator(TaskGenerator):
 
     name = "held_target"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "targets": Interval(Integral, 1, 100),
+        "hold": Interval(Real, 0, None, closed="neither", unit="s"),
+    }
+
     def __init__(self, targets: int = 2, hold: float = 1.5) -> None:
+        check_params(self, locals())
         if isinstance(targets, bool) or not isinstance(targets, int) or not 1 <= targets <= 100:
             raise ParameterError("targets", f"must be an integer in [1, 100], got {targets!r:.40}")
         if (

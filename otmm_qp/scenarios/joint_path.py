@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Integral, Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -12,6 +14,7 @@ from otmm_qp.scenarios.generator import Task, TaskGenerator, check_duration, che
 from otmm_qp.scenarios.search import clip_coordinates, sigma_min_at
 from otmm_qp.scenarios.singular import SingularSearch
 from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+from otmm_qp.validation import ArrayOf, Boolean, Constraints, Interval, check_params
 
 
 class JointPathGenerator(TaskGenerator):
@@ -36,6 +39,24 @@ class JointPathGenerator(TaskGenerator):
 
     name = "joint_path"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "offset": ArrayOf(
+            Interval(Real, 0, None, closed="left", unit="rad"), length=2, per="end of [low, high]"
+        ),
+        "half_span": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="rad"),
+            length=2,
+            per="end of [low, high]",
+        ),
+        "duration": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), length=2, per="end of [low, high]"
+        ),
+        "return_to_start": Boolean(),
+        "sigma_tolerance": Interval(Real, 0, None, closed="neither"),
+        "restarts": Interval(Integral, 1, None),
+        "iterations": Interval(Integral, 1, None),
+    }
+
     def __init__(
         self,
         offset: Sequence[float] = (0.0, 0.1),
@@ -46,6 +67,7 @@ class JointPathGenerator(TaskGenerator):
         restarts: int = 20,
         iterations: int = 100,
     ) -> None:
+        check_params(self, locals())
         self.offset = check_range("offset", offset)
         self.half_span = check_range("half_span", half_span)
         if not self.half_span[0] > 0.0:

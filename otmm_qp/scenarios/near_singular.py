@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Integral, Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.pose import PoseCircleTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval, check_params
 
 SHAPES = ("line", "arc")
 #: Singular poses tried (each with ``attempts`` path draws) before giving up.
@@ -76,6 +78,28 @@ class NearSingularGenerator(TaskGenerator):
 
     name = "near_singular"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "distance": ArrayOf(
+            Interval(Real, 0, None, closed="left", unit="m"), length=2, per="end of [low, high]"
+        ),
+        "length": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="m"), length=2, per="end of [low, high]"
+        ),
+        "duration": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), length=2, per="end of [low, high]"
+        ),
+        "shapes": InstanceOf(
+            (list, tuple), "a list of shapes: " + ", ".join(SHAPES), exclude=(str,)
+        ),
+        "arc_radius": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="m"), length=2, per="end of [low, high]"
+        ),
+        "sigma_tolerance": Interval(Real, 0, None, closed="neither"),
+        "restarts": Interval(Integral, 1, None),
+        "iterations": Interval(Integral, 1, None),
+        "attempts": Interval(Integral, 1, None),
+    }
+
     def __init__(
         self,
         distance: Sequence[float] = (0.0, 0.05),
@@ -88,6 +112,7 @@ class NearSingularGenerator(TaskGenerator):
         iterations: int = 100,
         attempts: int = 10,
     ) -> None:
+        check_params(self, locals())
         self.distance = check_range("distance", distance)
         self.length = check_range("length", length)
         if not self.length[0] > 0.0:

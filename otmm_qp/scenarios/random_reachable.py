@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -11,6 +13,7 @@ from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task, TaskGenerator, check_duration, draw
 from otmm_qp.scenarios.search import position_of, random_coordinates, sigma_min_at
 from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 #: Peak speed of the quintic law over its mean: ``max ṡ = 15/8``.
 QUINTIC_PEAK = 1.875
@@ -41,12 +44,21 @@ class RandomReachableGenerator(TaskGenerator):
 
     name = "random_reachable"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "duration": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), length=2, per="end of [low, high]"
+        ),
+        "joint_speed": Interval(Real, 0, None, closed="neither", unit="rad/s"),
+        "speed_fraction": Interval(Real, 0, 1, closed="right"),
+    }
+
     def __init__(
         self,
         duration: Sequence[float] = (2.0, 3.0),
         joint_speed: float = 1.5,
         speed_fraction: float = 0.8,
     ) -> None:
+        check_params(self, locals())
         self.duration = check_duration(duration)
         if not (isinstance(joint_speed, int | float) and 0.0 < joint_speed < float("inf")):
             raise ParameterError("joint_speed", f"must be a finite number > 0, got {joint_speed}")

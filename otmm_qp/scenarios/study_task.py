@@ -9,7 +9,8 @@ stored episode bit for bit.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from numbers import Integral, Real
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval
 
 #: Largest distance [task units] between the run's start pose and the task's start.
 START_TOLERANCE = 1e-9
@@ -69,6 +71,13 @@ class StudyTaskTrajectory(Trajectory):
     """
 
     name = "study_task"
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "robot": InstanceOf((Mapping,), "a robot record {type: NAME, ...}"),
+        "generator": InstanceOf((Mapping,), "a generator record {type: NAME, ...}"),
+        "seed": Interval(Integral, 0, None),
+        "task_weight": [ArrayOf(Interval(Real, 0, None), per="task row"), None],
+    }
 
     def __init__(
         self,

@@ -15,7 +15,7 @@ reference), the peak joint speed and the largest one-step jump [rad/s].
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from otmm_qp.metrics.table import metric
@@ -27,6 +27,7 @@ from otmm_qp.studies.fronts import (
     front_of,
     summary_table,
 )
+from otmm_qp.studies.limit_keeping import limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import Rows, task_key
 from otmm_qp.studies.verdicts import RESAMPLES, objectives, task_groups
@@ -83,8 +84,16 @@ def _verdict(row: RowFront) -> str:
     return "; ".join(out) or "no significant difference from the best others"
 
 
-def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
-    """Markdown: per kind of task the most accurate and the calmest front rows, and ours."""
+def kinds_table(
+    fronts: Sequence[GroupFront],
+    ours: str,
+    kinds: Mapping[str, list[dict[str, Any]]] | None = None,
+) -> list[str]:
+    """Markdown: per kind of task the most accurate and the calmest front rows, and ours.
+
+    With the rows of each kind (``kinds``, :func:`kind_rows`), the most accurate pick says in
+    its cell how often it broke the arm's limits (:mod:`otmm_qp.studies.limit_keeping`).
+    """
     heads = " / ".join(metric(m).label for m in fronts[0].objectives) if fronts else ""
     lines = [
         f"| task kind (tasks) | most accurate (medians {heads}) | lowest peak speed | `{ours}` "
@@ -96,7 +105,8 @@ def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
         for k in (0, 1):
             name = g.best_on(k)
             row = g.row(name) if name is not None else None
-            cells.append(f"{row.name} ({_medians(row)})" if row is not None else "–")
+            note = limits_clause(kinds.get(g.group, []), row.name) if kinds and row else ""
+            cells.append(f"{row.name} ({_medians(row)}){note}" if row is not None else "–")
         mine = g.row(ours)
         if mine is None:
             where = "did not run"
@@ -110,15 +120,23 @@ def kinds_table(fronts: Sequence[GroupFront], ours: str) -> list[str]:
     return lines
 
 
-def render(fronts: Sequence[GroupFront], ours: str, kinds: bool = False) -> str:
-    """The Markdown text: the counts, the summary (or kinds) table, then each group's details."""
+def render(
+    fronts: Sequence[GroupFront],
+    ours: str,
+    kinds: bool = False,
+    rows: Mapping[str, list[dict[str, Any]]] | None = None,
+) -> str:
+    """The Markdown text: the counts, the summary (or kinds) table, then each group's details.
+
+    ``rows``: each kind's rows, for the limits note of the kinds table.
+    """
 
     def mine(name: str) -> bool:
         return name == ours
 
     lines = [counts_sentence(fronts, mine), ""]
     if kinds:
-        return "\n".join(lines + kinds_table(fronts, ours))
+        return "\n".join(lines + kinds_table(fronts, ours, rows))
     lines += summary_table(fronts, mine) + [""]
     for g in fronts:
         lines += [f"### {g.robot} / {g.group}", "", *detail_table(g, mine), ""]

@@ -44,12 +44,15 @@ from otmm_qp.studies.fronts import (
     detail_table,
     summary_table,
 )
+from otmm_qp.studies.limit_keeping import limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
+from otmm_qp.studies.sizing import decision_advice
 from otmm_qp.studies.verdicts import (
     ALPHA,
     RESAMPLES,
+    AccuracyVerdict,
     TaskGroup,
     bracket_summary,
     check_highlight,
@@ -162,7 +165,11 @@ def bracket_table(rows: Rows, robot: str) -> list[Item]:
 
 
 def group_verdict(group: TaskGroup) -> str:
-    """One plain-words verdict line of :func:`~otmm_qp.studies.verdicts.decide_group`."""
+    """One plain-words verdict line of :func:`~otmm_qp.studies.verdicts.decide_group`.
+
+    An undecided group (rows not separated) says about how many tasks a decision would need
+    (:func:`~otmm_qp.studies.sizing.decision_advice`), never a bare "none is to be preferred".
+    """
     verdict = decide_group(group)
     head = f"- **{group.label.capitalize()}** ({verdict.tasks} tasks: {group.reading}): "
     rates = verdict.rates
@@ -180,7 +187,9 @@ def group_verdict(group: TaskGroup) -> str:
                 f"{r.name} {_pct(rates[r.name])}"
                 for r in sorted(verdict.ranking, key=lambda r: (-rates[r.name], r.name))
             )
-            + ")."
+            + "); "
+            + decision_advice(str(verdict.leader), verdict.tests)
+            + "."
         )
     best = str(verdict.pick)
     text = head + f"pick **{best}** (success {_pct(rates[best])})"
@@ -188,6 +197,7 @@ def group_verdict(group: TaskGroup) -> str:
         text += "; not separated from it by the paired test: " + ", ".join(
             f"{name} ({_pct(rates[name])})" for name in verdict.not_separated
         )
+        text += "; " + decision_advice(best, verdict.tests)
     closest = verdict.closest
     if closest is not None:
         text += (
@@ -199,6 +209,12 @@ def group_verdict(group: TaskGroup) -> str:
     return text + "."
 
 
+def _limits_clause(verdict: AccuracyVerdict, name: str) -> str:
+    """`` (limits broken on k of n tasks)``, or ``""`` when ``name`` kept them on every task."""
+    broken, total = verdict.breaks.get(name, (0, 0))
+    return f" (limits broken on {broken} of {total} tasks)" * (broken > 0)
+
+
 def accuracy_verdict(rows: Rows, robot: str) -> str:
     """The verdict line of :func:`~otmm_qp.studies.verdicts.accuracy_verdict`."""
     verdict = decide_accuracy(rows, robot)
@@ -206,7 +222,10 @@ def accuracy_verdict(rows: Rows, robot: str) -> str:
     if not verdict.top:
         return f"- **Accuracy ({label})**: no finite values."
     top = verdict.top
-    shown = ", ".join(f"{name} {_interval(verdict.medians[name])} m" for name in top[:4])
+    shown = ", ".join(
+        f"{name} {_interval(verdict.medians[name])} m{_limits_clause(verdict, name)}"
+        for name in top[:4]
+    )
     more = f" (+{len(top) - 4} more)" if len(top) > 4 else ""
     return (
         f"- **Accuracy ({label}, median [95 % CI])**: lowest, not beaten in any paired "
@@ -240,7 +259,9 @@ def render_markdown(
 def document(
     config: StudyConfig, rows: Rows, figures: Sequence[str], highlight: str | None = None
 ) -> list[Item]:
-    """The report: overview, per robot verdicts → fronts → figure → causes → details.
+    """The report: the decision per kind of task first, then the method and details.
+
+    Per robot after the method: bracket → fronts → figure → causes → details.
 
     Args:
         config: The study record.
@@ -250,7 +271,13 @@ def document(
     """
     check_highlight(rows, highlight)
     fronts = study_fronts(rows)
-    out: list[Item] = _overview(config, rows)
+    overview = _overview(config, rows)
+    cut = overview.index(_criteria_text(config))
+    out: list[Item] = overview[:cut]  # title, description, counts; the answer, the method
+    out += [Heading(2, "Decision per kind of task"), ""]
+    for robot in rows.robots():
+        out += [Heading(3, f"Verdict on {robot}", box=True), "", *_verdicts(rows, robot), ""]
+    out += [Heading(2, "Method"), "", *overview[cut:]]
     out += _fronts_overview(fronts, highlight)
     for robot in rows.robots():
         own = [f for f in fronts if f.robot == robot]
@@ -319,7 +346,14 @@ def _overview(config: StudyConfig, rows: Rows) -> list[Item]:
         "",
         config.description,
         "",
-        f"{len(competitors)} episodes ({errors} errors) on {tasks} tasks; robots: "
+        f"{len(competitors)} controller episodes ({errors} errors)"
+        + (
+            f" + {len(rows.rows) - len(competitors)} offline references = {len(rows.rows)} "
+            "episodes stored (the count `otmm-qp study` prints)"
+            if len(rows.rows) > len(competitors)
+            else ""
+        )
+        + f" on {tasks} tasks; robots: "
         f"{', '.join(rows.robots())}; controllers: {len(rows.controllers())}; "
         f"loop modes: {', '.join(config.loop_modes)}; dt = {config.dt:g} s.",
         "",
@@ -379,9 +413,11 @@ def _robot_section(
     fronts: Sequence[GroupFront] = (),
     highlight: str | None = None,
 ) -> list[Item]:
-    """One robot: verdict, Pareto fronts, figure, failure causes, worst episodes, tables."""
-    out: list[Item] = [Heading(2, robot), "", Heading(3, "Verdict", box=True), ""]
-    out += [*_verdicts(rows, robot), ""]
+    """One robot: Pareto fronts, figure, failure causes, worst episodes, tables.
+
+    Its verdict lines open the report (``## Decision per kind of task``).
+    """
+    out: list[Item] = [Heading(2, robot), ""]
     out += bracket_table(rows, robot)
     if fronts:
         out += [
@@ -657,6 +693,28 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
         ax.set_yscale("symlog", linthresh=max(1e-6, min(finite) / 2.0) if finite else 1e-4)
     else:
         ax.set_yscale("log")
+    below = [
+        name
+        for name, e in errors.items()
+        if name != REFERENCE_NAME and metric == RELATIVE_ERROR and e.value < 0.0
+    ]
+    if below:  # more accurate than the reference: say why, on the figure
+        ax.axhline(0.0, color="k", linewidth=0.6, linestyle=":")
+        own = rows.select(robot=robot)
+        reasons = [f"{n}{limits_clause(own, n) or ' (limits kept)'}" for n in below]
+        ax.text(
+            0.01,
+            0.01,
+            "below the reference (0): "
+            + "; ".join(reasons)
+            + ".\nThe reference keeps every joint limit and is solved to 1 % of the position "
+            "tolerance by a local solver:\na row below it broke a limit, or beat it within "
+            "that resolution or where the local solver stopped short.",
+            transform=ax.transAxes,
+            fontsize=5.5,
+            va="bottom",
+            wrap=True,
+        )
     ax.set_xlabel("median peak joint speed [rad/s]")
     label = "oracle-relative max error" if metric == RELATIVE_ERROR else "max error"
     ax.set_ylabel(f"median {label} [m]")

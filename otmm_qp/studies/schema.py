@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.config.schema import ControllerConfig, MetricsConfig, PlantConfig
+from otmm_qp.studies.decide import DecideRule
 
 
 class StudyRobot(Strict):
@@ -215,6 +216,7 @@ class StudyConfig(LoopSettings):
     generators: list[GeneratorSpec] = Field(min_length=1)
     controllers: list[StudyController] = Field(min_length=1)
     plants: list[StudyPlant] | None = Field(None, min_length=1)
+    decide: DecideRule | None = None  # batches until decided (studies/decide.py)
 
     @field_validator("plants")
     @classmethod

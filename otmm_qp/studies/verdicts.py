@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -27,6 +27,7 @@ from otmm_qp.metrics.table import STUDY_OBJECTIVES
 from otmm_qp.studies.columns import number
 from otmm_qp.studies.criteria import is_achievable
 from otmm_qp.studies.fronts import GroupFront, group_fronts
+from otmm_qp.studies.limit_keeping import limit_breaks
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, task_key, task_of
 from otmm_qp.studies.statistics import (
@@ -236,6 +237,8 @@ class GroupVerdict:
         not_separated: Rows sharing rank 1 with the pick (best rate first).
         beaten: How many rows the pick beats significantly.
         closest: The beaten row with the best rate, and the evidence, or None.
+        tests: The group's paired McNemar tests (every pair), for the sizing advice
+            (:func:`otmm_qp.studies.sizing.decision_advice`).
     """
 
     group: TaskGroup
@@ -247,6 +250,16 @@ class GroupVerdict:
     not_separated: tuple[str, ...] = ()
     beaten: int = 0
     closest: Closest | None = None
+    tests: tuple[PairedRates, ...] = ()
+
+    @property
+    def leader(self) -> str | None:
+        """The row a decision would favour: the pick, else the best rate (ties by name)."""
+        if self.pick is not None:
+            return self.pick
+        if not self.rates:
+            return None
+        return max(self.rates, key=lambda name: (self.rates[name], name))
 
 
 def _find_test(tests: list[PairedRates], a: str, b: str) -> PairedRates:
@@ -265,10 +278,10 @@ def decide_group(group: TaskGroup) -> GroupVerdict:
     if len(rates) == 1:
         return GroupVerdict(group, tasks, "single", rates, ranking, pick=next(iter(rates)))
     if all(rate == 0.0 for rate in rates.values()):
-        return GroupVerdict(group, tasks, "none succeeds", rates, ranking)
+        return GroupVerdict(group, tasks, "none succeeds", rates, ranking, tests=tuple(tests))
     top = [r for r in ranking if r.rank == 1]
     if len(top) == len(ranking):
-        return GroupVerdict(group, tasks, "not separated", rates, ranking)
+        return GroupVerdict(group, tasks, "not separated", rates, ranking, tests=tuple(tests))
     best = max(top, key=lambda r: (rates[r.name], r.name))
     others = tuple(r.name for r in top if r.name != best.name)
     beaten = [r for r in ranking if best.name in r.beaten_by]
@@ -281,7 +294,7 @@ def decide_group(group: TaskGroup) -> GroupVerdict:
         )
         closest = Closest(runner.name, mine, theirs, test.p_holm)
     return GroupVerdict(
-        group, tasks, "pick", rates, ranking, best.name, others, len(beaten), closest
+        group, tasks, "pick", rates, ranking, best.name, others, len(beaten), closest, tuple(tests)
     )
 
 
@@ -315,11 +328,15 @@ class AccuracyVerdict:
         top: The rows not beaten in any paired test (Holm), in ranking order; empty when no
             row has a finite value.
         medians: ``controller → median [95 % interval]`` [m] of every row with a finite one.
+        breaks: ``controller → (episodes breaking the arm's limits, episodes)`` of each row
+            in ``top`` (:func:`~otmm_qp.studies.limit_keeping.limit_breaks`); ``top`` lists the
+            rows that kept the limits on every task first.
     """
 
     metric: str
     top: tuple[str, ...]
     medians: dict[str, Interval]
+    breaks: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     @property
     def relative(self) -> bool:
@@ -339,7 +356,12 @@ def accuracy_verdict(rows: Rows, robot: str) -> AccuracyVerdict:
     if not medians:
         return AccuracyVerdict(metric, (), {})
     ranking = paired_ranking({n: m.value for n, m in medians.items()}, results)
-    return AccuracyVerdict(metric, tuple(r.name for r in ranking if r.rank == 1), medians)
+    own = rows.select(robot=robot)
+    first = [r.name for r in ranking if r.rank == 1]
+    breaks = {name: limit_breaks(own, name) for name in first}
+    # rows that keep the arm's limits first (stable: the ranking order within each side)
+    top = tuple(sorted(first, key=lambda name: breaks[name][0] > 0))
+    return AccuracyVerdict(metric, top, medians, breaks)
 
 
 def objectives(rows: Rows) -> tuple[str, ...]:

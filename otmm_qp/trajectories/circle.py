@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, OneOf, check_params
 
 
 class CircleTrajectory(Trajectory):
@@ -45,6 +47,17 @@ class CircleTrajectory(Trajectory):
 
     name = "circle"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "centre": ArrayOf(Interval(Real, None, None, unit="m"), per="task coordinate"),
+        "radius": Interval(Real, 0, None, closed="neither", unit="m"),
+        "period": Interval(Real, 0, None, closed="neither", unit="s"),
+        "direction": OneOf("clockwise", "counterclockwise"),
+        "start_angle": [Interval(Real, None, None, unit="rad"), None],
+        "normal": [ArrayOf(Interval(Real, None, None), length=3, per="coordinate"), None],
+        "turns": Interval(Real, 0, None, closed="neither"),
+        "profile": OneOf("constant", "quintic"),
+    }
+
     def __init__(
         self,
         start: FloatArray,
@@ -57,6 +70,7 @@ class CircleTrajectory(Trajectory):
         turns: float = 1.0,
         profile: Literal["constant", "quintic"] = "constant",
     ) -> None:
+        check_params(self, locals())
         if profile not in ("constant", "quintic"):
             raise ParameterError("profile", f"must be constant or quintic, got {profile!r}")
         self.profile = profile

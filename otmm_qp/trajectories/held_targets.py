@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
@@ -24,6 +26,7 @@ from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.pose import rpy_matrix
 from otmm_qp.trajectories.time_grid import piece_index, start_ticks
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, InstanceOf, Interval
 
 
 class HeldTargetsTrajectory(Trajectory):
@@ -42,6 +45,18 @@ class HeldTargetsTrajectory(Trajectory):
     #: Causal: each set-point is revealed when it is commanded, as in teleoperation
     #: (:attr:`Trajectory.lookahead`), so no controller may anticipate the next jump.
     lookahead = 0.0
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "targets": InstanceOf(
+            (list, tuple),
+            "a list of targets [x, y(, z)] [m] (pose: + roll, pitch, yaw [rad])",
+            exclude=(str,),
+        ),
+        "hold": ArrayOf(
+            Interval(Real, 0, None, closed="neither", unit="s"), scalar=True, per="target"
+        ),
+        "initial_hold": Interval(Real, 0, None, unit="s"),
+    }
 
     def __init__(
         self,

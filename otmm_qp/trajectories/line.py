@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.exceptions import DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
 
 
 class _Line(Trajectory):
@@ -17,6 +20,11 @@ class _Line(Trajectory):
 
     #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
     lookahead = math.inf
+    parameter_constraints: ClassVar[Constraints] = {
+        "end": ArrayOf(Interval(Real, None, None, unit="m"), per="task coordinate"),
+        "duration": Interval(Real, 0, None, closed="neither", unit="s"),
+        "begin": [ArrayOf(Interval(Real, None, None, unit="m"), per="task coordinate"), None],
+    }
 
     def __init__(
         self,
@@ -25,6 +33,7 @@ class _Line(Trajectory):
         duration: float,
         begin: Sequence[float] | None = None,
     ) -> None:
+        check_params(self, locals())
         self.end = np.asarray(end, dtype=float)
         dim = self.end.size
         if begin is None:

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from numbers import Real
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Constraints, Interval, OneOf, check_params
 
 Profile = Literal["quintic", "constant"]
 
@@ -149,6 +151,20 @@ class PoseLineTrajectory(Trajectory):
 
     name = "pose_line"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "duration": Interval(Real, 0, None, closed="neither", unit="s"),
+        "end": [ArrayOf(Interval(Real, None, None, unit="m"), length=3, per="coordinate"), None],
+        "end_rpy": [
+            ArrayOf(Interval(Real, None, None, unit="rad"), length=3, per="roll, pitch, yaw"),
+            None,
+        ],
+        "end_quaternion": [
+            ArrayOf(Interval(Real, None, None), length=4, per="x, y, z, w (normalised here)"),
+            None,
+        ],
+        "profile": OneOf("quintic", "constant"),
+    }
+
     def __init__(
         self,
         start: FloatArray,
@@ -158,6 +174,7 @@ class PoseLineTrajectory(Trajectory):
         end_quaternion: Sequence[float] | None = None,
         profile: Profile = "quintic",
     ) -> None:
+        check_params(self, locals())
         pose = _start_pose(start)
         if not duration > 0.0:
             raise ParameterError("duration", f"must be > 0 [s], got {duration}")
@@ -214,6 +231,25 @@ class PoseCircleTrajectory(Trajectory):
 
     name = "pose_circle"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "centre": ArrayOf(Interval(Real, None, None, unit="m"), length=3, per="coordinate"),
+        "radius": Interval(Real, 0, None, closed="neither", unit="m"),
+        "period": Interval(Real, 0, None, closed="neither", unit="s"),
+        "direction": OneOf("clockwise", "counterclockwise"),
+        "start_angle": [Interval(Real, None, None, unit="rad"), None],
+        "normal": [ArrayOf(Interval(Real, None, None), length=3, per="coordinate"), None],
+        "turns": Interval(Real, 0, None, closed="neither"),
+        "end_rpy": [
+            ArrayOf(Interval(Real, None, None, unit="rad"), length=3, per="roll, pitch, yaw"),
+            None,
+        ],
+        "end_quaternion": [
+            ArrayOf(Interval(Real, None, None), length=4, per="x, y, z, w (normalised here)"),
+            None,
+        ],
+        "profile": OneOf("quintic", "constant"),
+    }
+
     def __init__(
         self,
         start: FloatArray,
@@ -228,6 +264,7 @@ class PoseCircleTrajectory(Trajectory):
         end_quaternion: Sequence[float] | None = None,
         profile: Profile = "quintic",
     ) -> None:
+        check_params(self, locals())
         pose = _start_pose(start)
         if np.shape(centre) != (3,):
             raise DimensionError("centre", (3,), np.shape(centre))

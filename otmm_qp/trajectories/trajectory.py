@@ -13,7 +13,10 @@ class Trajectory(abc.ABC):
 
     Plugins are constructed as ``Trajectory(start=x0, **params)`` where ``x0`` is the task
     value at the start configuration (so a circle can start at the point nearest to it and a
-    pose trajectory can keep the start orientation).
+    pose trajectory can keep the start orientation). A trajectory that needs more of the
+    experiment names it in ``framework_parameters``: ``robot`` (the experiment's
+    :class:`~otmm_qp.robots.robot.Robot`) and ``q0`` (its start configuration, shape
+    ``(nq,)``) are passed too; a config never gives them.
 
     Information is explicit: at time ``t`` a controller may read ``x_d(t + τ)`` only for
     ``0 ≤ τ ≤`` :attr:`lookahead` (:mod:`otmm_qp.trajectories.preview`). The default, 0, is a
@@ -29,6 +32,8 @@ class Trajectory(abc.ABC):
     name: ClassVar[str] = "trajectory"
     #: How far ahead [s] the motion is known at any time (0: causal; inf: planned in full).
     lookahead: float = 0.0
+    #: Constructor parameters the framework passes itself (never from a config).
+    framework_parameters: ClassVar[tuple[str, ...]] = ("start",)
     duration: float
 
     @abc.abstractmethod

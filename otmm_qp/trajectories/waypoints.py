@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from numbers import Real
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.pose import exp_so3, log_so3, rpy_matrix
 from otmm_qp.trajectories.trajectory import Trajectory
+from otmm_qp.validation import ArrayOf, Boolean, Constraints, InstanceOf, Interval, check_params
 
 
 def quintic(tau: float) -> tuple[float, float]:
@@ -81,6 +83,20 @@ class WaypointsTrajectory(Trajectory):
 
     name = "waypoints"
 
+    parameter_constraints: ClassVar[Constraints] = {
+        "waypoints": InstanceOf(
+            (list, tuple),
+            "a list of points [x, y(, z)] [m] (pose: + roll, pitch, yaw [rad])",
+            exclude=(str,),
+        ),
+        "duration": [Interval(Real, 0, None, closed="neither", unit="s"), None],
+        "segment_durations": [
+            ArrayOf(Interval(Real, 0, None, closed="neither", unit="s"), per="segment"),
+            None,
+        ],
+        "return_to_start": Boolean(),
+    }
+
     def __init__(
         self,
         start: FloatArray,
@@ -89,6 +105,7 @@ class WaypointsTrajectory(Trajectory):
         segment_durations: Sequence[float] | None = None,
         return_to_start: bool = False,
     ) -> None:
+        check_params(self, locals())
         value = np.asarray(start, dtype=float)
         self.is_pose = value.shape == (4, 4)
         dim = 3 if self.is_pose else value.size
@@ -146,6 +163,10 @@ class JointWaypointsTrajectory(Trajectory):
 
     (``J`` in the robot's convention, so ``ẋ_d`` is the exact derivative of ``x_d``).
 
+    In a config only ``waypoints`` and the timing are given: the experiment passes its robot
+    and ``q0``, and the first waypoint must be ``q0`` (a motion starting elsewhere would jump
+    there in one step).
+
     Args:
         start: Task value at the start configuration (unused: the first waypoint is the start).
         robot: The arm (a :class:`Robot`, or a ``{type: NAME, **params}`` robot record).
@@ -154,12 +175,32 @@ class JointWaypointsTrajectory(Trajectory):
         duration: Total motion time [s], shared in proportion to joint-space segment lengths.
         segment_durations: Time of each segment [s] instead of ``duration``.
         return_to_start: Append the first waypoint as a last one.
+        q0: The experiment's start configuration ``(nq,)``, or None (not checked); the first
+            waypoint must equal it (to 1e-9 rad or m per joint, continuous joints modulo 2π).
+
+    Raises:
+        ConfigError: Fewer than two waypoints, or a first waypoint that is not ``q0``.
     """
 
     #: A planned motion: known in full at any time (:attr:`Trajectory.lookahead`).
     lookahead = math.inf
 
     name = "joint_waypoints"
+
+    parameter_constraints: ClassVar[Constraints] = {
+        "waypoints": InstanceOf(
+            (list, tuple),
+            "a list of joint coordinate lists [rad or m], the first being q0",
+            exclude=(str,),
+        ),
+        "duration": [Interval(Real, 0, None, closed="neither", unit="s"), None],
+        "segment_durations": [
+            ArrayOf(Interval(Real, 0, None, closed="neither", unit="s"), per="segment"),
+            None,
+        ],
+        "return_to_start": Boolean(),
+    }
+    framework_parameters = ("start", "robot", "q0")
 
     def __init__(
         self,
@@ -169,7 +210,9 @@ class JointWaypointsTrajectory(Trajectory):
         duration: float | None = None,
         segment_durations: Sequence[float] | None = None,
         return_to_start: bool = False,
+        q0: FloatArray | None = None,
     ) -> None:
+        check_params(self, locals())
         if not isinstance(robot, Robot):
             from otmm_qp import registry
 
@@ -188,6 +231,8 @@ class JointWaypointsTrajectory(Trajectory):
                 raise DimensionError(f"waypoints.{j}", (robot.nv,), node.shape)
             if not np.all(np.isfinite(node)):
                 raise ParameterError(f"waypoints.{j}", "must be finite")
+        if q0 is not None:
+            _check_first_waypoint(robot, nodes[0], np.asarray(q0, dtype=float))
         if return_to_start:
             nodes.append(nodes[0].copy())
         self.nodes = np.array(nodes)
@@ -206,3 +251,17 @@ class JointWaypointsTrajectory(Trajectory):
         coordinates, qdot = self.joint_sample(t)
         x, jacobian = self.robot.kinematics(self.robot.configuration(coordinates))
         return np.array(x, copy=True), jacobian @ qdot
+
+
+def _check_first_waypoint(robot: Robot, first: FloatArray, q0: FloatArray) -> None:
+    """Refuse a first waypoint other than ``q0`` (compared as joint coordinates, 1e-9)."""
+    start = robot.joint_coordinates(q0)
+    given = robot.joint_coordinates(robot.configuration(first))
+    if not np.allclose(given, start, rtol=0.0, atol=1e-9):
+        shown = ", ".join(f"{v:.4g}" for v in start)
+        jump = float(np.max(np.abs(given - start)))
+        raise ConfigError(
+            "waypoints.0",
+            f"must be the start configuration q0 = [{shown}] (the motion starts there; "
+            f"this one is {jump:.3g} rad away, a jump in one step)",
+        )

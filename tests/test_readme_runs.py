@@ -260,7 +260,7 @@ def test_arms_study_command_reduced(tmp_path: Path, capsys: pytest.CaptureFixtur
     rows = table.to_pylist()
     assert len({r["task_id"] for r in rows}) == 2 * 5
     controllers = {r["controller"] for r in rows}
-    assert "oracle" in controllers and len(controllers) == 9 + 1  # README: 9 controllers
+    assert "oracle" in controllers and len(controllers) == 10 + 1  # README: 10 controllers
     assert len(rows) == 10 * len(controllers)
     assert (out / "study_report.md").is_file() and (out / "study_report.html").is_file()
     assert main(["report", str(out)]) == 0  # `otmm-qp report DIR` on a study folder

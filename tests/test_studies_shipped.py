@@ -27,7 +27,7 @@ def test_arms_study_has_two_thousand_tasks_and_eight_controllers() -> None:
     assert sum(g.count for g in config.generators) * len(config.robots) >= 2000
     plan = plan_study(config, "arms.yaml")
     names = [c.name for c in plan.controllers] + [n for n, _ in plan.skipped]
-    assert len(names) >= 9
+    assert len(names) >= 10
     assert {
         "pinv",
         "dls",
@@ -38,6 +38,7 @@ def test_arms_study_has_two_thousand_tasks_and_eight_controllers() -> None:
         "OTMM+qp",
         "servo_scaling+qp",
         "pink",
+        "oink",
     } == set(names)
 
 

@@ -21,10 +21,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pydantic import Field
-
-from otmm_qp.config.base import Strict
 from otmm_qp.output.paths import atomic_write_text
+from otmm_qp.studies.schema import DecideRule
 
 if TYPE_CHECKING:
     from otmm_qp.studies.execute import StudyOutcome
@@ -40,18 +38,6 @@ __all__ = [
     "run_decided_study",
     "split",
 ]
-
-
-class DecideRule(Strict):
-    """``decide: {budget_tasks: N, batch: M}``: run batches of ``M`` until decided or ``N``.
-
-    Attributes:
-        budget_tasks: Most tasks per robot (the generators' counts are the split's weights).
-        batch: Tasks per robot added by each batch (``≤ budget_tasks``).
-    """
-
-    budget_tasks: int = Field(gt=0, le=1_000_000)
-    batch: int = Field(gt=0, le=1_000_000)
 
 
 def split(total: int, weights: list[int]) -> list[int]:

@@ -42,7 +42,6 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
 from otmm_qp.config.schema import ControllerConfig, MetricsConfig, PlantConfig
-from otmm_qp.studies.decide import DecideRule
 
 
 class StudyRobot(Strict):
@@ -196,6 +195,18 @@ class PlanLimits(Strict):
     max_controllers: int = Field(1_000, gt=0)
     max_episodes: int = Field(1_000_000, gt=0)
     max_generator_budget: int = Field(10_000, gt=0)
+
+
+class DecideRule(Strict):
+    """``decide: {budget_tasks: N, batch: M}``: run batches of ``M`` until decided or ``N``.
+
+    Attributes:
+        budget_tasks: Most tasks per robot (the generators' counts are the split's weights).
+        batch: Tasks per robot added by each batch (``≤ budget_tasks``).
+    """
+
+    budget_tasks: int = Field(gt=0, le=1_000_000)
+    batch: int = Field(gt=0, le=1_000_000)
 
 
 class StudyConfig(LoopSettings):

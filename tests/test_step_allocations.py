@@ -2,14 +2,14 @@
 
 ``tracemalloc`` records every Python and NumPy allocation. For each pipeline on the Panda, a
 first pass over a path toward the stretched-elbow singularity runs every code path once
-(solver set-up, buffers allocated at bind or on first use); the second pass measures, per
+(solver set-up, buffers allocated at bind or on first use); three more passes measure, per
 ``Controller.step`` (filters + backend + the NaN/speed guards), the transient high-water mark
-of traced memory above what was live before the step. A step allocates only what it returns
-(``q̇``, ``ẋ_m`` when a filter acts, the small result tuples) and what the QP solver's binding
-allocates itself; a temporary array per operation, as before issue 30, roughly doubles or
-triples the figure (the measured values are beside each case). The bounds sit between the two
-with headroom for NumPy's object sizes on other versions; nothing here depends on the speed
-of the machine.
+of traced memory above what was live before the step (the least of the three per step). A
+step allocates only what it returns (``q̇``, ``ẋ_m`` when a filter acts, the small result
+tuples) and what the QP solver's binding allocates itself; a temporary array per operation,
+as before issue 30, roughly doubles or triples the figure (the measured values are beside each
+case). The bounds sit between the two with headroom for NumPy's object sizes on other
+versions; nothing here depends on the speed of the machine.
 """
 
 from __future__ import annotations
@@ -33,10 +33,11 @@ STEPS = 60
 
 
 def _path(robot: PinocchioArm) -> tuple[list[KinematicState], list[FloatArray]]:
-    """States from the ready pose to a nearly stretched elbow (σ_min → 0.02), and pose commands.
+    """States from the ready pose toward a stretched elbow, and pose commands.
 
-    The commands alternate a slow and a fast one (the QP's fast path and its solver), and
-    point along the direction the arm is losing (the OTMM filter acts near the end).
+    σ_min falls from 0.21 to about 1e-3 mid-path (the OTMM filter acts on the last third);
+    the commands alternate a slow and a fast one (the QP's fast path and its solver, pinv's
+    ``ok`` and ``saturated``).
     """
     start = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
     stretched = np.array([0.0, 0.3, 0.0, -0.08, 0.0, 1.6, 0.8])  # elbow at its limit, near straight

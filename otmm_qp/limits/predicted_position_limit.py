@@ -31,6 +31,7 @@ or ramp, the box equals ``position``'s bit for bit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from numbers import Integral, Real
 from typing import ClassVar
@@ -183,7 +184,9 @@ class PredictedPositionLimit(PositionLimit):
         frequency = self.servo()
         if np.isfinite(frequency):
             speed = np.array(robot.velocity_limits, dtype=float)
-            margins += np.where(np.isfinite(speed), speed, 0.0) / (np.e * 2.0 * np.pi * frequency)
+            margins += np.where(np.isfinite(speed), speed, 0.0) / (
+                math.e * 2.0 * math.pi * frequency
+            )
         #: The total margin per joint [rad], shape ``(nv,)``.
         self.margins: FloatArray = margins
         self.total_margin = float(np.max(margins, initial=0.0))

@@ -418,7 +418,10 @@ def read_study_folder(out: Path) -> tuple[StudyConfig, StudyData]:
             str(out / MARKER), f"config.{where}: {first['msg']}"[:300]
         ) from None
     ident, keys = _marker_scope(out)
-    if ident is not None and study_id(config.model_dump(mode="json")) != ident:
+    # The id is the hash of the config as it was written (its stored JSON), not as today's
+    # schema re-reads it: a folder written before a field was added still matches, and a
+    # value edited by hand does not.
+    if ident is not None and study_id(marker["config"]) != ident:
         raise StudyDirectoryError(
             str(out / MARKER),
             f"its config does not hash to its study_id {ident!r:.20} (edited by hand?); "

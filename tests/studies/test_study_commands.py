@@ -140,6 +140,30 @@ def test_a_hand_edited_study_json_is_refused(
     assert not (out / "drilldown").exists()
 
 
+def test_a_folder_written_before_a_field_existed_is_still_read(
+    small_study: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The id is checked against the config as stored, not as today's schema re-reads it."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from otmm_qp.studies.storage import study_id
+
+    out = _copy(small_study, tmp_path)
+    marker = json.loads((out / "study.json").read_text())
+    del marker["config"]["reference"]["polish_iterations"]  # a field an older release lacked
+    old, new = marker["study_id"], study_id(marker["config"])
+    marker["study_id"] = new
+    (out / "study.json").write_text(json.dumps(marker))
+    for part in (out / EPISODES).glob("*.parquet"):  # the parts carry the id they were written with
+        table = pq.read_table(part)
+        column = pa.array([new if v == old else v for v in table["study"].to_pylist()])
+        pq.write_table(
+            table.set_column(table.schema.get_field_index("study"), "study", column), part
+        )
+    assert main(["study", "report", str(out)]) == 0, capsys.readouterr().err
+
+
 PLANTS = {
     **SMALL,
     "name": "plants",

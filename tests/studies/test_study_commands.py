@@ -158,9 +158,12 @@ def test_a_folder_written_before_a_field_existed_is_still_read(
     for part in (out / EPISODES).glob("*.parquet"):  # the parts carry the id they were written with
         table = pq.read_table(part)
         column = pa.array([new if v == old else v for v in table["study"].to_pylist()])
-        pq.write_table(
-            table.set_column(table.schema.get_field_index("study"), "study", column), part
-        )
+        table = table.set_column(table.schema.get_field_index("study"), "study", column)
+        metadata = {
+            k: (new.encode() if v == old.encode() else v)
+            for k, v in (table.schema.metadata or {}).items()
+        }
+        pq.write_table(table.replace_schema_metadata(metadata), part)
     assert main(["study", "report", str(out)]) == 0, capsys.readouterr().err
 
 

@@ -104,3 +104,70 @@ def test_mujoco_substeps_count_against_max_steps(
         "plant: 500 control steps × 200 plant steps per period = 1e+05 exceeds max_steps = 2000"
         in err
     )
+
+
+STUDY = """\
+version: 2
+name: bounded
+dt: 0.02
+max_steps: 2000
+reference: {enabled: false}
+robots:
+  - name: planar2
+    robot: {type: planar, link_lengths: [1.0, 0.8]}
+generators:
+  - {type: near_singular, count: 1, duration: [1.0, 1.0]}
+PLANTS
+controllers:
+  - name: pinv
+    backend: {type: pinv}
+    CONTROLLER_PLANT
+"""
+
+MUJOCO = "{type: mujoco, timestep: 1.0e-4, effort_limit: 50.0}"
+
+
+@pytest.mark.parametrize(
+    ("plants", "controller_plant", "pattern"),
+    [
+        (  # the plants axis: 75 control steps × 200 MuJoCo steps each
+            "plants:\n  - {name: ideal, plant: {type: ideal}}\n"
+            f"  - {{name: mj, plant: {MUJOCO}}}",
+            "",
+            r"plants\.1\.plant: \d+ control steps × 200 plant steps per period = [\d.e+]+ "
+            r"exceeds max_steps = 2000",
+        ),
+        (  # a controller's own plant
+            "",
+            f"plant: {MUJOCO}",
+            r"controllers\.0 \(pinv\)\.plant: \d+ control steps × 200 plant steps per period",
+        ),
+        (  # a delay's ring buffer is bounded where it is declared
+            "plants:\n  - {name: slow, plant: {type: delay, steps: 1000000000}}",
+            "",
+            r"plants\.0\.plant\.steps: must be an integer in \[0, 100000\] \[periods; .* MiB",
+        ),
+    ],
+    ids=["plants-axis-substeps", "controller-plant-substeps", "plants-axis-delay"],
+)
+def test_study_plants_are_bounded_like_a_run(
+    plants: str,
+    controller_plant: str,
+    pattern: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A study refuses a plant a run file refuses, in one line, before any episode runs."""
+    if "mujoco" in plants + controller_plant:
+        pytest.importorskip("mujoco")
+    config = tmp_path / "study.yaml"
+    text = STUDY.replace("PLANTS", plants).replace("CONTROLLER_PLANT", controller_plant)
+    config.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    status = main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet"])
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert status == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("otmm-qp: error: ") and len(lines[0]) < 300, lines[0]
+    assert re.search(pattern, lines[0]), lines[0]
+    assert not out.exists() or not any(out.rglob("*.parquet"))

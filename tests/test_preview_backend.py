@@ -445,28 +445,31 @@ def test_two_rate_refuses_a_bad_rate() -> None:
 # --- the study's information column ---------------------------------------------------------
 
 
+#: A tiny study mixing information classes: one causal row, one preview row, its causal twin.
+TINY_STUDY = {
+    "name": "preview-tiny",
+    "seed": 3,
+    "dt": 0.05,
+    "duration": {"extra": 0.1},
+    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
+    "generators": [{"type": "near_singular", "count": 1, "duration": [0.5, 0.6]}],
+    "controllers": [
+        {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
+        {"name": "preview", "backend": {"type": "preview", "horizon": 0.5}},
+        {"name": "causal", "backend": {"type": "preview_causal", "horizon": 0.5}},
+    ],
+}
+
+
 def test_study_rows_record_their_information_class(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from otmm_qp.studies.storage import read_episodes
-
-    study = {
-        "name": "preview-tiny",
-        "seed": 3,
-        "dt": 0.05,
-        "duration": {"extra": 0.1},
-        "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-        "generators": [{"type": "near_singular", "count": 1, "duration": [0.5, 0.6]}],
-        "controllers": [
-            {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
-            {"name": "preview", "backend": {"type": "preview", "horizon": 0.5}},
-            {"name": "causal", "backend": {"type": "preview_causal", "horizon": 0.5}},
-        ],
-    }
     import yaml
 
+    from otmm_qp.studies.storage import read_episodes
+
     path = tmp_path / "study.yaml"
-    path.write_text(yaml.safe_dump(study))
+    path.write_text(yaml.safe_dump(TINY_STUDY))
     out = tmp_path / "out"
     args = ["study", str(path), "--out", str(out), "--workers", "1", "--quiet", "--no-report"]
     assert main(args) == 0
@@ -484,6 +487,42 @@ def test_study_rows_record_their_information_class(
 
     assert verdict([str(out), "--ours", "preview", "--kinds"]) == 0
     assert "`preview`" in capsys.readouterr().out
+
+
+def test_the_study_report_labels_rows_by_information_class_when_it_mixes_them(
+    tmp_path: Path,
+) -> None:
+    """Success tables and the fronts summary name each row's class; one class: no label."""
+    import yaml
+
+    from otmm_qp.studies.fronts import summary_table
+    from otmm_qp.studies.report import load_rows, success_table
+    from otmm_qp.studies.rows import Rows
+    from otmm_qp.studies.verdicts import study_fronts
+
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(TINY_STUDY))
+    out = tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    report = (out / "study_report.md").read_text(encoding="utf-8")
+    names = [line.split(" | ")[0] for line in report.splitlines() if line.startswith("| ")]
+    for label in ("dls (causal)", "preview (preview 0.5 s)", "causal (causal)"):
+        assert f"| {label}" in names, label  # every success table
+    assert "| oracle (offline)" in names
+    fronts = next(line for line in report.splitlines() if line.startswith("| planar2 | "))
+    assert "preview (preview 0.5 s)" in fronts and "dls (causal)" in fronts, fronts
+    # A study whose controller rows share one class reads as it did before the column.
+    _, rows = load_rows(out)
+    causal = Rows([r for r in rows.rows if r["controller"] != "preview"])
+    unlabelled = Rows([{k: v for k, v in r.items() if k != "information"} for r in causal.rows])
+    assert causal.information_labels() == {} == unlabelled.information_labels()
+    for robot in (None, "planar2"):
+        assert success_table(causal, robot) == success_table(unlabelled, robot)
+    assert "(causal)" not in "\n".join(success_table(causal, None)[0])
+    fronts_of = study_fronts(causal)
+    assert summary_table(fronts_of, information=causal.information_labels()) == summary_table(
+        study_fronts(unlabelled)
+    )
 
 
 def test_the_shipped_preview_study_is_valid() -> None:

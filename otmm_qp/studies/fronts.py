@@ -277,16 +277,33 @@ def group_fronts(
     ]
 
 
-def _label(name: str, ours: Callable[[str], bool]) -> str:
-    return f"**{name}** (ours)" if ours(name) else name
+def _label(
+    name: str, ours: Callable[[str], bool], information: Mapping[str, str] | None = None
+) -> str:
+    text = with_information(name, information)
+    return f"**{text}** (ours)" if ours(name) else text
+
+
+def with_information(name: str, information: Mapping[str, str] | None) -> str:
+    """``name (class)`` when ``information`` (row name → information class) labels it."""
+    label = (information or {}).get(name)
+    return f"{name} ({label})" if label else name
 
 
 def _nobody(name: str) -> bool:
     return False
 
 
-def summary_table(fronts: Sequence[GroupFront], ours: Callable[[str], bool] = _nobody) -> list[str]:
-    """Markdown: per group the front, where *ours* sits, and who meets the criterion."""
+def summary_table(
+    fronts: Sequence[GroupFront],
+    ours: Callable[[str], bool] = _nobody,
+    information: Mapping[str, str] | None = None,
+) -> list[str]:
+    """Markdown: per group the front, where *ours* sits, and who meets the criterion.
+
+    ``information`` (row name → information class, see ``Rows.information_labels``) labels
+    every row name it holds: ``preview (preview 1 s)``.
+    """
     lines = [
         "| robot | group | tasks | Pareto front of medians | ours | meets the criterion "
         "(Holm: all pairs / best others) | best median on all objectives |",
@@ -295,7 +312,7 @@ def summary_table(fronts: Sequence[GroupFront], ours: Callable[[str], bool] = _n
     for g in fronts:
         mine = [r for r in g.rows if ours(r.name)]
         where = "; ".join(
-            f"{r.name}: "
+            f"{with_information(r.name, information)}: "
             + (
                 "on the front"
                 if r.on_front
@@ -304,11 +321,15 @@ def summary_table(fronts: Sequence[GroupFront], ours: Callable[[str], bool] = _n
             + f", {r.verdict()}"
             for r in mine
         )
-        meeting = " / ".join(", ".join(g.meeting(f)) or "none" for f in FAMILIES)
+        meeting = " / ".join(
+            ", ".join(with_information(n, information) for n in g.meeting(f)) or "none"
+            for f in FAMILIES
+        )
         lines.append(
             f"| {g.robot} | {g.group} | {g.tasks} | "
-            + ", ".join(_label(n, ours) for n in g.front)
-            + f" | {where or '–'} | {meeting} | {g.best_on_all or 'none'} |"
+            + ", ".join(_label(n, ours, information) for n in g.front)
+            + f" | {where or '–'} | {meeting} | "
+            + f"{with_information(g.best_on_all, information) if g.best_on_all else 'none'} |"
         )
     return lines
 

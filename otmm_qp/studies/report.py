@@ -43,6 +43,7 @@ from otmm_qp.studies.fronts import (
     counts_sentence,
     detail_table,
     summary_table,
+    with_information,
 )
 from otmm_qp.studies.limit_keeping import limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
@@ -103,7 +104,8 @@ def success_table(
 ) -> tuple[list[str], dict[str, tuple[float, float, float]]]:
     """Markdown lines of success rates and medians, and ``controller → (rate, low, high)``.
 
-    The reference (``oracle``) is the last row, without a success rate.
+    The reference (``oracle``) is the last row, without a success rate. Each row name carries
+    its information class when the study mixes several (:meth:`Rows.information_labels`).
     """
     metrics = _median_metrics(rows)
     header = (
@@ -113,13 +115,15 @@ def success_table(
     )
     lines = [header, "|" + "---|" * (4 + len(metrics))]
     rates: dict[str, tuple[float, float, float]] = {}
+    labels = rows.information_labels()
     for line in success_summary(rows, robot, [m.name for m in metrics]):
         if line.rate is None:
             rate = "reference (not ranked)"
         else:
             rates[line.controller] = (line.rate, line.low, line.high)
             rate = f"{100 * line.rate:.1f} % [{100 * line.low:.1f}, {100 * line.high:.1f}]"
-        cells = [line.controller, str(line.episodes), str(line.errors), rate]
+        cells = [with_information(line.controller, labels), str(line.episodes)]
+        cells += [str(line.errors), rate]
         cells += [_interval(m) for m in line.medians]
         lines.append("| " + " | ".join(cells) + " |")
     return lines, rates
@@ -423,7 +427,7 @@ def _robot_section(
         out += [
             Heading(3, f"Pareto fronts on {robot}"),
             "",
-            *summary_table(fronts, _ours(highlight)),
+            *summary_table(fronts, _ours(highlight), rows.information_labels()),
         ]
         out += [""]
     pareto = _pareto_path(robot)

@@ -133,6 +133,21 @@ class Rows:
         """Rows whose columns equal the given values."""
         return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
 
+    def information_labels(self) -> dict[str, str]:
+        """``row name → information class`` (``causal``, ``preview H s``, ``offline``).
+
+        Empty unless the competing rows carry more than one class (a study without preview
+        rows, or stored before the ``information`` column, is labelled as before: not at all).
+        The reference rows are labelled too when the others are.
+        """
+        classes: dict[str, str] = {}
+        for row in self.rows:
+            value = row.get("information")
+            if isinstance(value, str) and value:
+                classes.setdefault(str(row["controller"]), value)
+        competing = {v for k, v in classes.items() if k != REFERENCE_NAME}
+        return classes if len(competing) > 1 else {}
+
     @property
     def has_reference(self) -> bool:
         """Whether any task has an offline reference."""

@@ -23,6 +23,7 @@ from otmm_qp.config.load import load, parse
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
+from otmm_qp.simulation.episode import step_count
 from otmm_qp.studies.columns import descriptor_type
 from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
@@ -333,7 +334,8 @@ def check_plugins(
 
     Raises:
         ConfigError: Unknown plugin or parameter, a controller that does not fit a robot, or
-            an episode over ``max_steps``, with its path.
+            an episode (or its plant steps, ``steps × substeps`` of the longest first
+            task) over ``max_steps``, with its path.
     """
     from otmm_qp.runner.build import build_controller, load_robot
     from otmm_qp.runner.prepare import prepare
@@ -382,22 +384,47 @@ def check_plugins(
         except OtmmError as error:
             raise ConfigError(field, str(error)) from None
         prepare(episode, built, f"{source}: robots.{i}", reachable=False)
-        _check_stages(config, controllers, robot, episode.q0, source)
+        longest = max(step_count(made.duration, config.dt) for made in tasks)
+        _check_stages(config, controllers, robot, episode.q0, (longest, config.max_steps), source)
     return skipped, descriptors
 
 
 def _check_stages(
-    config: StudyConfig, controllers: list[ControllerConfig], robot: Any, q0: Any, source: str
-) -> None:
-    """Build and reset every plant of the axis and every conditioning on ``robot`` at ``q0``.
+    config: StudyConfig, controllers: list[ControllerConfig], robot: Any, q0: Any,
+    budget: tuple[int, int], source: str,
+) -> None:  # fmt: skip
+    """Build and reset every plant and every conditioning on ``robot`` at ``q0``.
+
+    The plants are those of the ``plants`` axis, else the controllers' own; each is checked
+    like a run's (:func:`~otmm_qp.runner.plant_stage.check_plant`), ``steps × substeps``
+    against ``max_steps`` included.
+
+    Args:
+        config: The study.
+        controllers: The expanded controllers.
+        robot: The arm.
+        q0: Start configuration of its first task (nq,).
+        budget: ``(steps, max_steps)``: the control steps of the robot's longest first-task
+            episode (one per generator) and the study's cap.
+        source: Config path prefix of the errors.
 
     Raises:
-        ConfigError: Naming ``plants.I.plant`` or the controller's ``conditioning``.
+        ConfigError: Naming ``plants.I.plant``, the controller's ``plant`` or its
+            ``conditioning``.
     """
     from otmm_qp.runner.plant_stage import check_conditioning, check_plant, plant_record
 
     for j, plant in enumerate(config.plants or []):
-        check_plant(plant_record(plant.plant), robot, q0, config.dt, f"{source}: plants.{j}.plant")
+        field = f"{source}: plants.{j}.plant"
+        check_plant(plant_record(plant.plant), robot, q0, config.dt, field, budget)
+    if config.plants is None:  # the axis replaces the controllers' own plants
+        checked: set[str] = set()
+        for k, controller in enumerate(controllers):
+            record = plant_record(controller.plant)
+            if record is not None and repr(record) not in checked:
+                checked.add(repr(record))
+                field = f"{source}: controllers.{k} ({controller.name}).plant"
+                check_plant(record, robot, q0, config.dt, field, budget)
     conditioning = {
         c.name: [dict(s.params, type=s.type) for s in c.conditioning]
         for c in controllers

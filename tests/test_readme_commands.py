@@ -241,12 +241,19 @@ def _test_functions(path: str) -> frozenset[str]:
     )
 
 
+# The pages the README's long evidence moved to: a mapped command may be named there instead.
+EVIDENCE_PAGES = ("docs/studies.md", "docs/strategies.md", "benchmarks/PERFORMANCE.md")
+
+
 def test_every_readme_command_is_mapped_to_a_test() -> None:
     commands = readme_commands((ROOT / "README.md").read_text(encoding="utf-8"))
     unmapped = [c for c in commands if c not in COMMANDS]
     assert not unmapped, f"README commands with no entry in COMMANDS: {unmapped}"
-    stale = [c for c in COMMANDS if c not in commands]
-    assert not stale, f"COMMANDS entries the README no longer names: {stale}"
+    named = set(commands)
+    for page in EVIDENCE_PAGES:
+        named.update(readme_commands((ROOT / page).read_text(encoding="utf-8")))
+    stale = [c for c in COMMANDS if c not in named]
+    assert not stale, f"COMMANDS entries neither the README nor its evidence pages name: {stale}"
 
 
 def test_every_mapped_test_exists() -> None:
@@ -295,9 +302,10 @@ def _plan_sizes(name: str) -> tuple[int, int, int]:
 def test_study_sizes_the_readme_states_are_the_plans() -> None:
     """The sizes written next to the study commands, from the shipped files' plans (no runs).
 
-    The plants results moved to docs/plants.md: its sentence is checked there.
+    The plants results moved to docs/plants.md and the planar and arms study results to
+    docs/studies.md: their sentences are checked there.
     """
-    sources = ("README.md", "docs/plants.md")
+    sources = ("README.md", "docs/plants.md", "docs/studies.md")
     text = " ".join(" ".join((ROOT / s).read_text(encoding="utf-8").split()) for s in sources)
     (p_episodes, p_tasks, p_rows), (a_episodes, a_tasks, a_rows), (l_episodes, l_tasks, l_rows) = (
         _plan_sizes(n) for n in ("planar", "arms", "plants")
@@ -315,7 +323,7 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
     ]  # fmt: skip
     for pattern, expected in checks:
         found = re.search(pattern, text)
-        assert found, f"the README sentence changed its form: {pattern}"
+        assert found, f"the sentence changed its form: {pattern}"
         assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern
     # docs/studies.md states the same sizes next to its copies of the commands
     studies = " ".join((ROOT / "docs" / "studies.md").read_text(encoding="utf-8").split())
@@ -326,3 +334,19 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
         found = re.search(pattern, studies)
         assert found, f"docs/studies.md changed its form: {pattern}"
         assert tuple(int(g.replace(",", "")) for g in found.groups()) == expected, pattern
+
+
+def test_the_readme_opens_with_the_two_commands_then_its_contents() -> None:
+    """A newcomer's page: the two set-up commands first, a table of contents, under 20 KB."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    first_block = text.split("```bash\n", 1)[1].split("```", 1)[0].strip().splitlines()
+    assert first_block == [
+        "python3 -m venv .venv && .venv/bin/pip install -q . && .venv/bin/otmm-qp",
+        'python3 -m venv .venv && .venv/bin/pip install -q ".[test,peers]" && .venv/bin/pytest',
+    ]
+    contents = text.index("\n## Contents")
+    assert contents == text.index("\n## ")  # the first section after the commands
+    headings = re.findall(r"^## (.+)$", text, flags=re.M)
+    linked = re.findall(r"^- \[(.+?)\]\(#", text[contents:], flags=re.M)
+    assert linked == [h for h in headings if h != "Contents"]
+    assert len(text.encode("utf-8")) < 20 * 1024

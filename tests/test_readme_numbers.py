@@ -1,4 +1,8 @@
-"""The numbers the README publishes for the planar study are what the shipped command produces."""
+"""The planar study's published numbers are what the shipped command produces.
+
+The README summarises the study; the table and its sentences are in docs/studies.md
+("Measured: the planar study"), read from there (``SOURCE``).
+"""
 
 from __future__ import annotations
 
@@ -10,10 +14,11 @@ import pytest
 from otmm_qp.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
+SOURCE = ROOT / "docs" / "studies.md"  # where the planar study's numbers are published
 
 
 def _readme_rows() -> dict[str, list[str]]:
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = SOURCE.read_text(encoding="utf-8")
     section = text[text.index("otmm-qp study configs/studies/planar.yaml --workers 2") :]
     section = section[: section.index("\n\n", section.index("| controller |"))]
     rows = {}
@@ -39,7 +44,7 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
         line = next(row for row in pooled.splitlines() if row.startswith(f"| {controller} |"))
         assert success in line, (controller, line)
         for value in (max_error, peak, jump):
-            # The README shows the median; the report adds its bootstrap interval after it.
+            # The table shows the median; the report adds its bootstrap interval after it.
             assert re.search(rf"\| {re.escape(value)} \[", line), (controller, value, line)
     _check_reference_sentence(out)
     _check_paired_sentence(report)
@@ -47,10 +52,10 @@ def test_planar_study_table_in_readme_is_regenerated(tmp_path: Path, capsys) -> 
 
 
 def _check_graceful_sentence(pooled: str) -> None:
-    """README: how many unachievable tasks the graceful criteria pass, from the report's rates."""
-    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    """How many unachievable tasks the graceful criteria pass, from the report's rates."""
+    text = " ".join(SOURCE.read_text(encoding="utf-8").split())
     found = re.search(r"dls passes (\d+) of them, qp and OTMM\+pinv\[sigma_s=0\.05\] (\d+)\)", text)
-    assert found, "the README's graceful sentence changed its form"
+    assert found, "the graceful sentence changed its form"
 
     def successes(controller: str) -> int:
         line = next(r for r in pooled.splitlines() if r.startswith(f"| {controller} |"))
@@ -66,10 +71,10 @@ def _check_graceful_sentence(pooled: str) -> None:
 
 
 def _check_reference_sentence(out: Path) -> None:
-    """The README sentence "the reference certifies N of the M tasks", and who solves those."""
+    """The sentence "the reference certifies N of the M tasks", and who solves those."""
     from otmm_qp.studies.storage import read_episodes
 
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = SOURCE.read_text(encoding="utf-8")
     found = re.search(r"the reference certifies (\d+)\s+of the (\d+) tasks", text)
     assert found is not None
     table = read_episodes(out)
@@ -98,8 +103,8 @@ def _check_reference_sentence(out: Path) -> None:
 
 
 def _check_paired_sentence(report: str) -> None:
-    """The README's paired OTMM + pinv vs pinv counts and Holm p are the report's."""
-    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    """The paired OTMM + pinv vs pinv counts and Holm p are the report's."""
+    text = " ".join(SOURCE.read_text(encoding="utf-8").split())
     found = re.search(
         r"strictly lower oracle-relative max error than pinv on (\d+)–(\d+) of the (\d+) "
         r"2-link tasks "
@@ -107,7 +112,7 @@ def _check_paired_sentence(report: str) -> None:
         r"OTMM \+ pinv \(Holm p ≤ ([0-9.]+)\)",
         text,
     )
-    assert found, "the README's paired sentence changed its form"
+    assert found, "the paired sentence changed its form"
     lower, ties, higher, holm = (
         sorted(map(int, found.group(1, 2))),
         sorted(map(int, found.group(4, 5))),

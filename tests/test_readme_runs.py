@@ -1,9 +1,10 @@
-"""The README's run commands that no other test ran, and the "Beyond the paper" table they print.
+"""The README's run commands that no other test ran, and the strategies table they print.
 
 ``otmm-qp run configs/strategies/paper.yaml`` (with its comparison figures, where the symlog note
 once divided by zero) and ``configs/strategies/arms.yaml`` run once per module through the CLI's
-``main``; every cell of the README's strategies table is checked against their ``summary.csv`` at
-the precision the README prints, and so are the numbers of the paragraph below it. An arm
+``main``; every cell of the table the README links to (docs/strategies.md, "The four scenarios
+in short": ``TABLE_SOURCE``) is checked against their ``summary.csv`` at the precision it
+prints, and so are the numbers of the paragraph below it. An arm
 cell's numbers must also hold on another machine: the table's arm experiments run again with
 another OpenBLAS kernel (other floating-point rounding in every SVD and product) and with q0
 moved by ±1e-13 rad, and each printed number must match every run (a chaotic run's numbers are
@@ -29,6 +30,7 @@ from otmm_qp.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 STRATEGIES = ROOT / "configs" / "strategies"
+TABLE_SOURCE = ROOT / "docs" / "strategies.md"  # the four scenarios' table and its paragraph
 
 # README column → (config, experiment); every cell is the CLIK run.
 COLUMNS = {
@@ -81,7 +83,7 @@ def strategies(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Summary]:
 
 
 def _readme_table() -> dict[str, list[str]]:
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = TABLE_SOURCE.read_text(encoding="utf-8")
     start = text.index("| strategy | E1 | E2 (singular start)")
     lines = text[start : text.index("\n\n", start)].splitlines()
     header = [c.strip() for c in lines[0].strip("|").split("|")]
@@ -201,14 +203,14 @@ def test_readme_strategies_table_holds_on_another_machine(
 
 def test_readme_no_strategy_dominates_paragraph(strategies: dict[str, Summary]) -> None:
     """The numbers of "No strategy dominates" (all but the µs timings of the benchmark)."""
-    text = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    text = " ".join(TABLE_SOURCE.read_text(encoding="utf-8").split())
     found = re.search(
         r"removes the E2 spike \(([0-9.]+) rad/s in every loop mode\) and keeps cbrt's E1 window "
         r"error \(([0-9.]+) ×\).*?UR5 wrist peak ([0-9.]+) rad/s, beyond-reach jump ([0-9.]+) "
         r"rad/s\), paying about ([0-9.]+) × cbrt's window error on E1",
         text,
     )
-    assert found, "the README's 'No strategy dominates' paragraph changed its form"
+    assert found, "docs/strategies.md's 'No strategy dominates' paragraph changed its form"
     e2_peak, ratio, wrist, jump, directional = found.groups()
     paper, arms = strategies["paper"], strategies["arms"]
     for mode in ("feedforward", "clik", "newton"):
@@ -241,9 +243,9 @@ def test_ur5_wrist_replay_command(tmp_path: Path, capsys: pytest.CaptureFixture[
 def test_arms_study_command_reduced(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``otmm-qp study configs/studies/arms.yaml`` on a reduced copy: one task per generator.
 
-    The shipped file is copied with every generator's ``count`` set to 1 (20,000 → 100
-    episodes: 2 robots × 5 tasks × (9 controllers after grid expansion + the reference));
-    nothing else changes.
+    The shipped file is copied with every generator's ``count`` set to 1 (22,000 → 110
+    episodes: 2 robots × 5 tasks × (10 controllers after grid expansion + the reference, the
+    count the README states next to the command)); nothing else changes.
     """
     data = yaml.safe_load((ROOT / "configs/studies/arms.yaml").read_text(encoding="utf-8"))
     for generator in data["generators"]:
@@ -260,7 +262,12 @@ def test_arms_study_command_reduced(tmp_path: Path, capsys: pytest.CaptureFixtur
     rows = table.to_pylist()
     assert len({r["task_id"] for r in rows}) == 2 * 5
     controllers = {r["controller"] for r in rows}
-    assert "oracle" in controllers and len(controllers) == 10 + 1  # README: 10 controllers
+    stated = re.search(
+        r"UR5 \+ Panda, [\d,]+ tasks x \((\d+) controllers \+ oracle\)",
+        (ROOT / "README.md").read_text(encoding="utf-8"),
+    )
+    assert stated, "the README's arms study comment changed its form"
+    assert "oracle" in controllers and len(controllers) == int(stated.group(1)) + 1
     assert len(rows) == 10 * len(controllers)
     assert (out / "study_report.md").is_file() and (out / "study_report.html").is_file()
     assert main(["report", str(out)]) == 0  # `otmm-qp report DIR` on a study folder

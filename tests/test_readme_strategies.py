@@ -1,7 +1,9 @@
-"""The README's "Which strategy for which task" table is what the shipped commands print.
+"""The "Which strategy for which task" table is what the shipped commands print.
 
-Runs the README's two commands on the shipped reduced study (``strategies_readme.yaml``) and
-checks the table line by line, and the claims of the sentences around it against the fronts.
+The README names the two commands and links the table, which with its sentences is the section
+"Which strategy for which task" of docs/strategies.md (``SOURCE``). Runs the two commands on the
+shipped reduced study (``strategies_readme.yaml``) and checks the table line by line, and the
+claims of the sentences around it against the fronts.
 """
 
 from __future__ import annotations
@@ -18,12 +20,13 @@ from otmm_qp.studies.spec import load_study, plan_study
 
 ROOT = Path(__file__).resolve().parent.parent
 STUDIES = ROOT / "configs" / "studies"
+SOURCE = ROOT / "docs" / "strategies.md"  # the section the README links
 
 
 def _readme_section() -> str:
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    start = text.index("### Which strategy for which task")
-    return text[start : text.index("\n## ", start)]
+    text = SOURCE.read_text(encoding="utf-8")
+    start = text.index("\n## Which strategy for which task\n")
+    return text[start : text.index("\n## ", start + 1)]
 
 
 def _readme_table(section: str) -> list[str]:

@@ -312,19 +312,21 @@ def _run_claimed(
     done = set() if stored.table is None else set(stored.table.column("episode_key").to_pylist())
     for line in stored.ignored:
         print(f"otmm-qp: resume ignored {line}", file=sys.stderr)
-    _write_study_marker(out, plan, source, ident)
     outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
-    chunks = make_chunks(plan, done, stored_references(plan, done, out, ident))
-    payload = payload_of(plan)
-    writer = PartWriter(out, ident, plan.task_columns)
     written: set[str] = set(done)
     tic = time.perf_counter()
-
-    def consume(results: Iterator[ChunkResult]) -> None:
-        _store_results(results, writer, written, outcome, progress)
-
+    # From the marker on, a stop signal is an interrupted study (every finished episode
+    # stored), also while the chunks are made (reading the stored references takes a while).
     with _sigterm_as_interrupt():
         try:
+            _write_study_marker(out, plan, source, ident)
+            chunks = make_chunks(plan, done, stored_references(plan, done, out, ident))
+            payload = payload_of(plan)
+            writer = PartWriter(out, ident, plan.task_columns)
+
+            def consume(results: Iterator[ChunkResult]) -> None:
+                _store_results(results, writer, written, outcome, progress)
+
             _feed_chunks(consume, payload, chunks, where[0], where[1], client)
         except KeyboardInterrupt:
             outcome.interrupted = True

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 import textwrap
@@ -96,11 +97,17 @@ def test_sigint_held_gives_a_swallowed_signal_back() -> None:
     """A library that caught SIGINT itself (``swallowed``): KeyboardInterrupt at the end."""
     from otmm_qp.runner.interrupt import sigint_held
 
-    ran = []
-    with pytest.raises(KeyboardInterrupt), sigint_held() as held:
-        held.swallowed = True
-        ran.append(1)
-    assert ran == [1]
-    with sigint_held():  # nothing arrived: nothing raised
-        ran.append(2)
-    assert ran == [1, 2]
+    # The signal given back goes to the process's SIGINT handler: make it Python's default here,
+    # whatever the test runner installed (pytest-xdist's workers ignore SIGINT).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        ran = []
+        with pytest.raises(KeyboardInterrupt), sigint_held() as held:
+            held.swallowed = True
+            ran.append(1)
+        assert ran == [1]
+        with sigint_held():  # nothing arrived: nothing raised
+            ran.append(2)
+        assert ran == [1, 2]
+    finally:
+        signal.signal(signal.SIGINT, previous)

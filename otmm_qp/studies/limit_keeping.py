@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["LIMIT_CAUSES", "limit_breaks", "limits_clause"]
+__all__ = ["LIMIT_CAUSES", "breaks_clause", "limit_breaks", "limits_clause"]
 
 #: Failure causes that mean the arm's limits were not kept.
 LIMIT_CAUSES = ("speed", "position_limit")
@@ -26,7 +26,11 @@ def limit_breaks(rows: Iterable[dict[str, Any]], controller: str) -> tuple[int, 
     return broken, len(own)
 
 
-def limits_clause(rows: Iterable[dict[str, Any]], controller: str) -> str:
-    """`` (limits broken on k of n tasks)``, or ``""`` when it kept them on every task."""
-    broken, total = limit_breaks(rows, controller)
+def breaks_clause(broken: int, total: int) -> str:
+    """`` (limits broken on broken of total tasks)``, or ``""`` when ``broken`` is 0."""
     return f" (limits broken on {broken} of {total} tasks)" * (broken > 0)
+
+
+def limits_clause(rows: Iterable[dict[str, Any]], controller: str) -> str:
+    """:func:`breaks_clause` of ``controller``'s rows among ``rows``."""
+    return breaks_clause(*limit_breaks(rows, controller))

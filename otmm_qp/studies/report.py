@@ -45,7 +45,7 @@ from otmm_qp.studies.fronts import (
     summary_table,
     with_information,
 )
-from otmm_qp.studies.limit_keeping import limits_clause
+from otmm_qp.studies.limit_keeping import breaks_clause, limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
@@ -53,7 +53,6 @@ from otmm_qp.studies.sizing import decision_advice
 from otmm_qp.studies.verdicts import (
     ALPHA,
     RESAMPLES,
-    AccuracyVerdict,
     TaskGroup,
     bracket_summary,
     check_highlight,
@@ -213,12 +212,6 @@ def group_verdict(group: TaskGroup) -> str:
     return text + "."
 
 
-def _limits_clause(verdict: AccuracyVerdict, name: str) -> str:
-    """`` (limits broken on k of n tasks)``, or ``""`` when ``name`` kept them on every task."""
-    broken, total = verdict.breaks.get(name, (0, 0))
-    return f" (limits broken on {broken} of {total} tasks)" * (broken > 0)
-
-
 def accuracy_verdict(rows: Rows, robot: str) -> str:
     """The verdict line of :func:`~otmm_qp.studies.verdicts.accuracy_verdict`."""
     verdict = decide_accuracy(rows, robot)
@@ -227,8 +220,8 @@ def accuracy_verdict(rows: Rows, robot: str) -> str:
         return f"- **Accuracy ({label})**: no finite values."
     top = verdict.top
     shown = ", ".join(
-        f"{name} {_interval(verdict.medians[name])} m{_limits_clause(verdict, name)}"
-        for name in top[:4]
+        f"{n} {_interval(verdict.medians[n])} m{breaks_clause(*verdict.breaks.get(n, (0, 0)))}"
+        for n in top[:4]
     )
     more = f" (+{len(top) - 4} more)" if len(top) > 4 else ""
     return (

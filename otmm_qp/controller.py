@@ -203,4 +203,5 @@ class Controller:
                     else result._replace(qdot=qdot, status=status)
                 )
         filtered = weighted if unit else weighted / state.weight
-        return ControllerOutput(qdot, filtered, reports, result)
+        # tuple.__new__: the NamedTuple without its Python-level __new__ (a third cheaper).
+        return tuple.__new__(ControllerOutput, (qdot, filtered, reports, result))

@@ -37,6 +37,8 @@ __all__ = [
     "diagonal_view",
 ]
 
+_INF, _MINUS_INF = math.inf, -math.inf
+
 
 @dataclass(frozen=True)
 class QpFormulation:
@@ -143,14 +145,15 @@ def active_bound(
     # A scalar loop: for an arm's nv ≤ ~10 joints it costs a third of the eight NumPy calls
     # (each ~1 µs) that the array form needs, and this runs on every QP step.
     active = False
+    inf, minus_inf = _INF, _MINUS_INF  # locals: no global and attribute look-up per joint
     lower, upper = bounds.tolist() if lists is None else lists
     for value, low, high in zip(qdot.tolist(), lower, upper, strict=True):
         if not low <= value <= high:  # also for NaN
             return None
         # An infinite bound is never active (inf ≤ τ(1 + inf) would say it is).
         if not active and (
-            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
-            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
+            (value - low <= tol * (1.0 + abs(low)) and low != minus_inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != inf)
         ):
             active = True  # later joints need only the inside test
     return active
@@ -190,20 +193,21 @@ def clip_into_box(
     if not math.isfinite(sum(values)):  # NaN or ±inf somewhere (or entries beyond 1e308)
         return None
     active = changed = False
+    inf, minus_inf = _INF, _MINUS_INF  # locals: no global and attribute look-up per joint
     lower, upper = bounds.tolist() if lists is None else lists
     for i, (value, low, high) in enumerate(zip(values, lower, upper, strict=True)):
         if value <= low:
             # Equal and non-zero: the same bits already (a zero may be -0.0 against 0.0).
             if value != low or low == 0.0:
                 values[i], changed = low, True
-            active = active or low != -math.inf
+            active = active or low != minus_inf
         elif value >= high:
             if value != high or high == 0.0:
                 values[i], changed = high, True
-            active = active or high != math.inf
+            active = active or high != inf
         elif not active and (
-            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
-            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
+            (value - low <= tol * (1.0 + abs(low)) and low != minus_inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != inf)
         ):
             active = True
     if owned and not changed:

@@ -2,14 +2,15 @@
 
 Run: ``python benchmarks/bench_instructions.py [--steps N] [--passes P] [--no-valgrind]``.
 
-The floor, ``KinematicState.compute`` and four pipelines (OTMM + pinv, dls, OTMM + QP, OTMM +
-QP solved every step) run the bench's recorded Panda states, each after one untimed warm-up
-pass, in phases marked by ``os.getpid()``. Under ``valgrind --tool=callgrind
---dump-before=getpid`` (what this script starts when valgrind is installed, unless
-``--no-valgrind``) every phase is one dump, so the instructions of a phase divided by its
-steps is the count per step, whatever else the machine is doing. Without valgrind the phases
-only run (a quick check). Uses only APIs older than the floor row, so the same script counts
-the code of an earlier commit too.
+The floor, ``KinematicState.compute``, four pipelines (OTMM + pinv, dls, OTMM + QP, OTMM +
+QP solved every step; each ``KinematicState.compute`` + ``Controller.step``) and pink with
+daqp (its adapter's public ``solve`` on the step's state, as the bench times it) run the
+bench's recorded Panda states, each after one untimed warm-up pass, in phases marked by
+``os.getpid()``. Under ``valgrind --tool=callgrind --dump-before=getpid`` (what this script
+starts when valgrind is installed, unless ``--no-valgrind``) every phase is one dump, so the
+instructions of a phase divided by its steps is the count per step, whatever else the
+machine is doing. Without valgrind the phases only run (a quick check). Uses only APIs older
+than the floor row, so the same script counts the code of an earlier commit too.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-PHASES = ("floor", "compute", "otmm+pinv", "dls", "otmm+qp", "otmm+qp every step")
+PHASES = ("floor", "compute", "otmm+pinv", "dls", "otmm+qp", "otmm+qp every step", "pink (daqp)")
 
 
 def _steps(steps: int) -> dict[str, Callable[[int], None]]:
@@ -66,6 +67,19 @@ def _steps(steps: int) -> dict[str, Callable[[int], None]]:
 
         return run
 
+    def peer(name: str, params: dict[str, object]) -> Callable[[int], None]:
+        # As the bench times a peer: its public solve on the step's state (pink's own
+        # configuration update, task, limits and QP inside).
+        adapter = registry.create(registry.BACKENDS, name, params, name)
+        adapter.bind(robot, DT)
+        adapter.reset()
+        states = [KinematicState.compute(robot, q) for q in qs]
+
+        def run(k: int) -> None:
+            adapter.solve(states[k], xdots[k], prevs[k])
+
+        return run
+
     daqp: dict[str, object] = {"solver": "daqp"}
     return dict(
         zip(
@@ -77,6 +91,7 @@ def _steps(steps: int) -> dict[str, Callable[[int], None]]:
                 pipeline("dls", {"damping": 0.05}, False),
                 pipeline("qp", daqp, True),
                 pipeline("qp", {**daqp, "fast_path": False}, True),
+                peer("pink", daqp),
             ),
             strict=True,
         )
@@ -130,9 +145,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 0
     per_step = counted(args.steps, args.passes)
-    floor = per_step["floor"]
+    floor, pink = per_step["floor"], per_step["pink (daqp)"]
     for name, value in per_step.items():
-        print(f"{name:20s} {value / 1e3:8.1f} k instructions/step  {value / floor:5.2f} x floor")
+        print(
+            f"{name:20s} {value / 1e3:8.1f} k instructions/step  {value / floor:5.2f} x floor"
+            f"  {value / pink:5.3f} x pink"
+        )
     return 0
 
 

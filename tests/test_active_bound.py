@@ -104,3 +104,55 @@ def test_clip_into_box_rejects_nan_and_inf() -> None:
     assert clip_into_box(np.array([0.0, np.inf]), bounds, TOL) is None
     clipped = clip_into_box(np.array([1.0 + 1e-12, 0.0]), bounds, TOL)
     assert clipped is not None and clipped[0][0] == 1.0 and clipped[1]
+
+
+zero_or_value = st.one_of(solver_value, st.just(0.0), st.just(-0.0))
+zero_or_lower = st.one_of(lower_bound, st.just(0.0), st.just(-0.0))
+zero_or_upper = st.one_of(upper_bound, st.just(0.0), st.just(-0.0))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(zero_or_value, zero_or_lower, zero_or_upper, st.integers(0, 2)),
+        min_size=1,
+        max_size=9,
+    )
+)
+def test_owned_answer_and_bound_lists_change_no_bit(
+    rows: list[tuple[float, float, float, int]],
+) -> None:
+    """``owned=True`` and the box as lists give the same bits (signed zeros included).
+
+    ``x`` is returned itself when strictly inside the box, never when clipping changed a bit
+    (a value on a zero bound counts as clipped: its sign bit may differ from the bound's).
+    """
+    x = np.array([r[0] for r in rows])
+    lower = np.array([min(r[1], r[2]) for r in rows])
+    upper = np.array([max(r[1], r[2]) for r in rows])
+    snap = np.array([r[3] for r in rows])  # 1: x on its lower bound, 2: on its upper bound
+    x[snap == 1] = lower[snap == 1]
+    x[snap == 2] = upper[snap == 2]
+    x = np.where(np.isinf(x) & (snap > 0), 0.0, x)
+    bounds = np.array([lower, upper])
+    plain = clip_into_box(x, bounds, TOL)
+    original = x.copy()
+    owned = clip_into_box(x, bounds, TOL, lists=(lower.tolist(), upper.tolist()), owned=True)
+    if plain is None:
+        assert owned is None
+        return
+    assert owned is not None
+    assert owned[0].tobytes() == plain[0].tobytes() and owned[1] == plain[1]
+    if np.all((lower < original) & (original < upper)):
+        assert owned[0] is x  # strictly inside: nothing to clip, the solver's array is kept
+    if plain[0].tobytes() != original.tobytes():
+        assert owned[0] is not x
+    assert x.tobytes() == original.tobytes()  # never written in place
+
+
+def test_active_bound_reads_the_lists_it_is_given() -> None:
+    """With ``lists`` the array is not read: the lists are the box."""
+    qdot = np.array([0.5, 0.0])
+    stale = np.array([[-9.0, -9.0], [9.0, 9.0]])
+    assert active_bound(qdot, stale, TOL, ([-1.0, -1.0], [0.5, 1.0])) is True
+    assert active_bound(qdot, stale, TOL, ([-1.0, -1.0], [0.4, 1.0])) is None

@@ -136,7 +136,7 @@ def test_bench_instructions_runs_tiny() -> None:
         check=False,
     )
     assert done.returncode == 0, done.stderr
-    assert "ran 6 phases x 1 passes x 10 states" in done.stdout
+    assert "ran 7 phases x 1 passes x 10 states" in done.stdout
     refused = subprocess.run(
         [sys.executable, script, "--steps", "3"], capture_output=True, text=True, check=False
     )

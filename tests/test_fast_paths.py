@@ -343,3 +343,37 @@ def test_conflicting_bounds_names_the_first_clash() -> None:
 def test_session_solve_before_load_is_not_found(solver: str) -> None:
     solution = make_session(solver).solve()
     assert not solution.found and solution.x is None and solution.detail
+
+
+@pytest.mark.parametrize("solver", [*SESSIONS, "quadprog"])
+def test_session_reads_a_reused_problem_written_in_place(solver: str) -> None:
+    """One problem object rewritten in place each step (what the QP backend does).
+
+    Every array the backend writes (P, q, lb, ub) is read again at each load, each one alone;
+    an empty box is refused and the next valid data solves again. Optimum of
+    ``½ h‖x‖² + qᵀx`` in a box: ``clip(−q/h, lb, ub)``.
+    """
+    session = make_session(solver)
+    problem = _box_problem(-1.0, 1.0)  # P = I, q = 1: x = -1 (on the lower bound)
+
+    def solved() -> np.ndarray:
+        session.load(problem)
+        solution = session.solve()
+        assert solution.found and solution.x is not None, solution
+        return solution.x
+
+    np.testing.assert_allclose(solved(), -1.0, atol=1e-6)
+    problem.lb[:] = -0.5  # the lower bound alone
+    np.testing.assert_allclose(solved(), -0.5, atol=1e-6)
+    problem.q[:] = -0.25  # the linear cost alone: x = 0.25, inside
+    np.testing.assert_allclose(solved(), 0.25, atol=1e-6)
+    problem.P[:] = 0.5 * np.eye(3)  # the Hessian alone: x = 0.5
+    np.testing.assert_allclose(solved(), 0.5, atol=1e-6)
+    problem.ub[:] = 0.3  # the upper bound alone
+    np.testing.assert_allclose(solved(), 0.3, atol=1e-6)
+    problem.lb[:] = 0.6  # lb > ub: refused, never the last x
+    session.load(problem)
+    refused = session.solve()
+    assert not refused.found and refused.x is None and refused.detail
+    problem.lb[:] = -0.5
+    np.testing.assert_allclose(solved(), 0.3, atol=1e-6)

@@ -24,7 +24,15 @@ from otmm_qp.validation import (
 )
 
 from .box_backend import SOLVER, SOLVER_TOL, BoxQpBackend, QpStep
-from .formulation import BIG, QpFormulation, QpProblem, clip_into_box, diagonal_view
+from .formulation import (
+    BIG,
+    QpFormulation,
+    QpProblem,
+    active_bound,
+    build_qp,
+    clip_into_box,
+    diagonal_view,
+)
 from .posture import POSTURE_MOVED, QpPosture
 from .solvers import QpSession, available_solvers, make_session
 
@@ -34,6 +42,9 @@ POLICIES = ("raise", "hold", "dls")
 DEFAULT_REGULARIZATION = 1e-3
 
 __all__ = ["POLICIES", "InfeasiblePolicy", "QpBackend", "QpStep", "available_solvers"]
+
+#: Builds a NamedTuple from all its fields without the Python-level ``__new__`` (hot path).
+_new = tuple.__new__
 
 #: ``damping`` λ or ``regularization`` μ of the QP backends: > 0, or None (the other / default).
 POSITIVE_OR_NONE = [Interval(Real, 0, None, closed="neither"), None]
@@ -171,7 +182,8 @@ class QpBackend(BoxQpBackend):
         session = self._row_session
         if session is not None and status in (Status.OK, Status.BOUNDED):
             qdot, status, record = self._enforce_rows(inputs, session, qdot, status)
-        return BackendOutput(qdot, status, self._factor, 1.0, record)  # positional: cheaper
+        # tuple.__new__: the NamedTuple without its Python-level __new__ (a third cheaper).
+        return _new(BackendOutput, (qdot, status, self._factor, 1.0, record))
 
     def _empty_box(self, inputs: StepInputs) -> BackendOutput:
         """The policy's answer to an empty box (``raise`` carries the step's QP)."""
@@ -188,16 +200,17 @@ class QpBackend(BoxQpBackend):
     def _solve_box(self, inputs: StepInputs) -> tuple[FloatArray, Status, QpStep]:
         """The optimum under the box: the fast path when it applies, else the QP."""
         state, xdot, posture = inputs
-        bounds = self.box.bounds
+        box, formulation = self.box, self.formulation
         if self.fast_path:
-            candidate = self.formulation.unconstrained(state, xdot, posture, self._work)
-            status = self.inside_status(candidate, 1e-9)  # None outside the box or for NaN
-            if status is not None:
-                return candidate, status, QpStep(bounds)
-        box = None if self._box_in_problem else bounds  # None: already in _data
-        data = self.formulation.build(
-            state.task_jacobian, xdot, posture, box, self._data, self._diagonal
-        )
+            candidate = formulation.unconstrained(state, xdot, posture, self._work)
+            active = active_bound(candidate, box.bounds, 1e-9, box.lists)  # None: outside, NaN
+            if active is not None:
+                return candidate, Status.BOUNDED if active else Status.OK, QpStep(box.bounds)
+        data = build_qp(
+            state.task_jacobian, xdot, formulation.mu,
+            None if self._box_in_problem else box.bounds,  # None: already in _data
+            formulation.posture_weight, posture, self._data, self._diagonal,
+        )  # fmt: skip
         return self._solve(inputs, self.session, data, ())
 
     def _solve(
@@ -206,9 +219,11 @@ class QpBackend(BoxQpBackend):
         """Solve ``data`` in ``session``; clip into the box, or fall back on failure."""
         session.load(data)
         solution = session.solve()
-        bounds = self.box.bounds
-        record = QpStep(bounds, data, solution, rows)
-        settled = None if solution.x is None else clip_into_box(solution.x, bounds, SOLVER_TOL)
+        box = self.box
+        bounds = box.bounds
+        record = _new(QpStep, (bounds, data, solution, rows))  # QpStep(...), cheaper
+        x = solution.x  # a fresh array (the session contract): returned when not clipped
+        settled = None if x is None else clip_into_box(x, bounds, SOLVER_TOL, box.lists, owned=True)
         if settled is None:  # no solution, or a non-finite one
             state, xdot, posture = inputs
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"

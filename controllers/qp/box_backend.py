@@ -143,7 +143,8 @@ class BoxQpBackend(Backend):
 
     def inside_status(self, qdot: FloatArray, tol: float) -> Status | None:
         """:meth:`classify` for ``qdot`` inside the box; None when it is outside (or NaN)."""
-        active = active_bound(qdot, self.box.bounds, tol)
+        box = self.box
+        active = active_bound(qdot, box.bounds, tol, box.lists)
         if active is None:
             return None
         return Status.BOUNDED if active else Status.OK

@@ -37,6 +37,8 @@ __all__ = [
     "diagonal_view",
 ]
 
+_INF, _MINUS_INF = math.inf, -math.inf
+
 
 @dataclass(frozen=True)
 class QpFormulation:
@@ -116,7 +118,12 @@ class QpFormulation:
         )
 
 
-def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | None:
+def active_bound(
+    qdot: FloatArray,
+    bounds: FloatArray,
+    tol: float,
+    lists: tuple[list[float], list[float]] | None = None,
+) -> bool | None:
     r"""Whether some :math:`\dot q_i` is within ``tol·(1 + |bound|)`` of ``lb_i`` or ``ub_i``.
 
     .. math:: \exists i:\ \dot q_i - lb_i \le \tau(1 + |lb_i|)\ \lor\
@@ -128,6 +135,8 @@ def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | Non
         qdot: Joint velocity [rad/s], shape ``(nv,)``.
         bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``.
         tol: Relative tolerance τ [-].
+        lists: ``bounds`` as two lists of Python floats when the caller has them
+            (:attr:`~otmm_qp.limits.box.LimitBox.lists`); None: converted here.
 
     Returns:
         The answer, or None when ``qdot`` lies outside the box (or is NaN): one pass serves the
@@ -136,20 +145,27 @@ def active_bound(qdot: FloatArray, bounds: FloatArray, tol: float) -> bool | Non
     # A scalar loop: for an arm's nv ≤ ~10 joints it costs a third of the eight NumPy calls
     # (each ~1 µs) that the array form needs, and this runs on every QP step.
     active = False
-    lower, upper = bounds.tolist()
+    inf, minus_inf = _INF, _MINUS_INF  # locals: no global and attribute look-up per joint
+    lower, upper = bounds.tolist() if lists is None else lists
     for value, low, high in zip(qdot.tolist(), lower, upper, strict=True):
         if not low <= value <= high:  # also for NaN
             return None
         # An infinite bound is never active (inf ≤ τ(1 + inf) would say it is).
         if not active and (
-            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
-            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
+            (value - low <= tol * (1.0 + abs(low)) and low != minus_inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != inf)
         ):
             active = True  # later joints need only the inside test
     return active
 
 
-def clip_into_box(x: FloatArray, bounds: FloatArray, tol: float) -> tuple[FloatArray, bool] | None:
+def clip_into_box(
+    x: FloatArray,
+    bounds: FloatArray,
+    tol: float,
+    lists: tuple[list[float], list[float]] | None = None,
+    owned: bool = False,
+) -> tuple[FloatArray, bool] | None:
     r"""A solver's answer clipped into the box, and whether a bound is then active.
 
     .. math:: \dot q = \min(\max(x, lb), ub),\qquad
@@ -162,29 +178,40 @@ def clip_into_box(x: FloatArray, bounds: FloatArray, tol: float) -> tuple[FloatA
         x: The solver's primal solution [rad/s], shape ``(nv,)``.
         bounds: ``[lb; ub]`` [rad/s], shape ``(2, nv)``, ``lb ≤ ub``.
         tol: Relative tolerance τ [-] of :func:`active_bound`.
+        lists: ``bounds`` as two lists of Python floats when the caller has them
+            (:attr:`~otmm_qp.limits.box.LimitBox.lists`); None: converted here.
+        owned: ``x`` is a fresh array the caller gives away (e.g. a solver's copy): returned
+            as ``q̇`` itself when clipping changes none of its values.
 
     Returns:
-        ``(q̇ (nv,) a new array, active)``, or None when some ``x_i`` is NaN or ±inf.
+        ``(q̇ (nv,), active)`` — a new array, or ``x`` itself when ``owned`` and nothing
+        changed — or None when some ``x_i`` is NaN or ±inf.
     """
     # One scalar pass instead of isfinite/all, maximum/minimum and active_bound's pass (the
     # every-step QP path runs this on each step; see active_bound for why scalar).
     values = x.tolist()
     if not math.isfinite(sum(values)):  # NaN or ±inf somewhere (or entries beyond 1e308)
         return None
-    active = False
-    lower, upper = bounds.tolist()
+    active = changed = False
+    inf, minus_inf = _INF, _MINUS_INF  # locals: no global and attribute look-up per joint
+    lower, upper = bounds.tolist() if lists is None else lists
     for i, (value, low, high) in enumerate(zip(values, lower, upper, strict=True)):
         if value <= low:
-            values[i] = low
-            active = active or low != -math.inf
+            # Equal and non-zero: the same bits already (a zero may be -0.0 against 0.0).
+            if value != low or low == 0.0:
+                values[i], changed = low, True
+            active = active or low != minus_inf
         elif value >= high:
-            values[i] = high
-            active = active or high != math.inf
+            if value != high or high == 0.0:
+                values[i], changed = high, True
+            active = active or high != inf
         elif not active and (
-            (value - low <= tol * (1.0 + abs(low)) and low != -math.inf)
-            or (high - value <= tol * (1.0 + abs(high)) and high != math.inf)
+            (value - low <= tol * (1.0 + abs(low)) and low != minus_inf)
+            or (high - value <= tol * (1.0 + abs(high)) and high != inf)
         ):
             active = True
+    if owned and not changed:
+        return x, active
     return np.array(values), active
 
 

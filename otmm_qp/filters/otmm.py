@@ -70,6 +70,10 @@ def p_function(name: str, params: Mapping[str, Any] | None, sigma_s: float) -> P
     return bound
 
 
+#: Builds a NamedTuple from all its fields without the Python-level ``__new__`` (hot path).
+_new = tuple.__new__
+
+
 class OtmmFilter(TaskFilter):
     r"""Suppress the command along the weakest left singular vector(s) of ``J_w``.
 
@@ -131,7 +135,9 @@ class OtmmFilter(TaskFilter):
         if sigma.size == n:
             sigma_min = float(sigma[n - 1])
             if sigma_min > sigma_s:
-                return FilterOutput(xdot, FilterReport(False, sigma_min, 0.0, 0.0))
+                # tuple.__new__: the NamedTuples without their Python-level __new__.
+                report = _new(FilterReport, (False, sigma_min, 0.0, 0.0))
+                return _new(FilterOutput, (xdot, report))
         else:
             sigma_min = 0.0
             U, sigma = _full_left_basis(state)
@@ -148,7 +154,8 @@ class OtmmFilter(TaskFilter):
             # ẋ − r u_s as ẋ + (−r) u_s (the same rounding), in the one new array returned.
             modified = np.multiply(u_s, -removed_along)
             np.add(xdot, modified, modified)
-            return FilterOutput(modified, FilterReport(True, sigma_min, p, abs(removed_along)))
+            report = _new(FilterReport, (True, sigma_min, p, abs(removed_along)))
+            return _new(FilterOutput, (modified, report))
         basis = U[:, n - k :]  # (n, k) the u_i filtered
         p_values = np.array([self.p(float(s)) for s in sigma[n - k :]])  # (k,)
         removed_coefficients = p_values * (xdot @ basis)  # p_i (u_iᵀẋ)

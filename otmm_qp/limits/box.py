@@ -93,6 +93,8 @@ class LimitBox:
     Attributes:
         limits: The limits, by priority.
         bounds: ``[lb; ub]`` [rad/s] of the last step, shape ``(2, nv)``.
+        lists: The same ``(lb, ub)`` as two lists of Python floats (set by :meth:`compute`;
+            the scalar tests of a step's solution read them instead of converting again).
         static: The intersection of the static limits' boxes (set by :meth:`bind`).
     """
 
@@ -108,6 +110,7 @@ class LimitBox:
         nv = robot.nv
         inf = np.full(nv, np.inf)
         self.bounds: FloatArray = np.empty((2, nv))
+        self.lists: tuple[list[float], list[float]] = ([], [])
         self._bounds = Box(self.bounds[0], self.bounds[1])
         theta, zero = np.zeros(nv), np.zeros(nv)
         parts: list[Box] = []
@@ -149,6 +152,7 @@ class LimitBox:
             limit.compute_box(theta, qdot_prev, box)
         intersect(self._sources, self._bounds)
         lower, upper = self.bounds.tolist()
+        self.lists = (lower, upper)
         # A scalar test: a third of the cost of NumPy's greater + any on arm-sized nv.
         return any(map(operator.gt, lower, upper))
 

@@ -240,6 +240,8 @@ class PredictedPositionLimit(PositionLimit):
         elif self.prediction.active:
             rest = np.add(theta, self.prediction.advance(qdot_prev), out=self._rest)
         super().compute_box(rest, qdot_prev, out)
+        if self._twice_decel is None and self._ramp_speed is None:
+            return out  # the position box alone (the distances below feed only these two)
         distance = self._distance  # [θ_min + m − R̂; θ_max − m − R̂]
         np.subtract(self._theta_min, rest, out=distance[0])
         np.subtract(self._theta_max, rest, out=distance[1])

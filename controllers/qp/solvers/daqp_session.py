@@ -44,20 +44,33 @@ class DaqpSession(QpSession):
         self._upper[:n], self._upper[n:] = problem.ub, problem.u
         self._lower[:n], self._lower[n:] = problem.lb, problem.l
 
+    def load(self, problem: QpProblem) -> None:
+        """:meth:`QpSession.load`; the same box-only problem again goes straight to DAQP."""
+        model = self._model
+        if problem is self._loaded and model is not None and not problem.C.shape[0]:
+            # No structure to compare (see QpSession.load); the call of _update_box inlined.
+            flag = model.update(problem.P, problem.q, None, problem.ub, problem.lb)
+            self._refused = None if flag >= 0 else f"update exitflag {flag}"
+        else:
+            super().load(problem)
+
+    def _update_box(self, problem: QpProblem) -> None:
+        # Positional (H, f, A, bupper, blower): keyword parsing costs more in Cython.
+        flag = self._model.update(problem.P, problem.q, None, problem.ub, problem.lb)
+        self._refused = None if flag >= 0 else f"update exitflag {flag}"
+
     def update(self, problem: QpProblem) -> None:
         """New ``P``, ``q``, bounds (and rows); the active set of the last solve is kept."""
         if self._model is None:  # the last set-up was refused: set up again
             self.setup(problem)
             return
         if not problem.C.shape[0]:  # box only: the bounds are the problem's own arrays
-            flag = self._model.update(
-                H=problem.P, f=problem.q, bupper=problem.ub, blower=problem.lb
-            )
-        else:
-            self._stack(problem)
-            flag = self._model.update(
-                H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
-            )
+            self._update_box(problem)
+            return
+        self._stack(problem)
+        flag = self._model.update(
+            H=problem.P, f=problem.q, A=problem.C, bupper=self._upper, blower=self._lower
+        )
         self._refused = None if flag >= 0 else f"update exitflag {flag}"
 
     def solve(self) -> Solution:
@@ -68,5 +81,6 @@ class DaqpSession(QpSession):
         detail = _DETAILS.get(exitflag) or f"exitflag {exitflag}"
         if exitflag <= 0:
             return Solution(None, False, detail)
-        # DAQP returns a new float64 array per solve: no copy needed.
-        return Solution(np.asarray(x, dtype=float), True, detail)
+        # DAQP returns a new float64 array per solve: no copy or conversion needed. (All
+        # fields through tuple.__new__: a third cheaper than Solution(...), on every QP step.)
+        return tuple.__new__(Solution, (x, True, detail, True))

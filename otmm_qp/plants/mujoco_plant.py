@@ -30,17 +30,19 @@ stores why and stops the run (its other runs keep their results).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from numbers import Real
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
+from otmm_qp.limits.limit import per_joint
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import ArrayOf, Boolean, Constraints, Interval, OneOf, check_params
 
 __all__ = ["MujocoPlant"]
 
@@ -59,7 +61,7 @@ MAX_SUBSTEPS = 1_000
 
 
 class MujocoPlant(Plant):
-    """MuJoCo body with per-joint PD servos on the integrated command.
+    r"""MuJoCo body with per-joint PD servos on the integrated command.
 
     Args:
         frequency: Servo bandwidth f [Hz], finite and > 0.
@@ -72,6 +74,11 @@ class MujocoPlant(Plant):
         effort_limit: Torque limit [N·m] for joints whose URDF has no positive ``effort``;
             None (default) refuses such a URDF.
         unstable_speed: Joint speed above which the simulation counts as unstable [rad/s].
+        armature: Reflected rotor inertia :math:`I_a` [kg·m²] added to each joint's inertia
+            (MuJoCo's joint ``armature``: :math:`M(q) + \operatorname{diag}(I_a)`), ≥ 0, a scalar
+            or one per joint; 0 (default): the URDF's link inertias alone.
+        contacts: Whether the links collide with each other (the peer model's collision
+            geometry); False (default): no contact is simulated, as in the kinematic model.
 
     Raises:
         ParameterError: A parameter out of range (naming it).
@@ -88,6 +95,10 @@ class MujocoPlant(Plant):
         "compensation": OneOf("gravity", "none"),
         "effort_limit": [Interval(Real, 0, None, closed="neither", unit="N·m or N"), None],
         "unstable_speed": Interval(Real, 0, None, closed="neither", unit="rad/s"),
+        "armature": ArrayOf(
+            Interval(Real, 0, None, closed="left", unit="kg·m²"), scalar=True, per="joint"
+        ),
+        "contacts": Boolean(),
     }
 
     def __init__(
@@ -99,6 +110,8 @@ class MujocoPlant(Plant):
         compensation: Literal["gravity", "none"] = "gravity",
         effort_limit: float | None = None,
         unstable_speed: float = 100.0,
+        armature: float | Sequence[float] = 0.0,
+        contacts: bool = False,
     ) -> None:
         check_params(self, locals())
         self.frequency = float(frequency)
@@ -108,6 +121,8 @@ class MujocoPlant(Plant):
         self.compensation = compensation
         self.effort_limit = None if effort_limit is None else float(effort_limit)
         self.unstable_speed = float(unstable_speed)
+        self.armature = armature
+        self.contacts = bool(contacts)
         try:
             import mujoco
         except ImportError:
@@ -133,14 +148,19 @@ class MujocoPlant(Plant):
             raise ConfigError("", f"MuJoCo model: {_one_line(error)}") from None
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.gravity = [0.0, 0.0, -9.81] if self.gravity else [0.0, 0.0, 0.0]
+        if not self.contacts:
+            spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        armature = per_joint(self.armature, "armature", robot.nv)
+        assert armature is not None
         joints = {j.name: j for j in spec.joints}
-        for name, limit in zip(robot.joint_names, self.tau_max, strict=True):
+        for name, limit, rotor in zip(robot.joint_names, self.tau_max, armature, strict=True):
             joint = joints.get(name)
             if joint is None:
                 raise ConfigError("", f"MuJoCo model: joint {name!r} is not in the model")
             joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
             joint.actfrcrange = [-float(limit), float(limit)]
             joint.actgravcomp = self.compensation == "gravity"
+            joint.armature = float(rotor)
             for kind in ("position", "velocity"):
                 actuator = spec.add_actuator()
                 actuator.name = f"otmm_{kind}_{name}"
@@ -261,4 +281,8 @@ class MujocoPlant(Plant):
             parts.append("no-gravity")
         if self.compensation == "none":
             parts.append("no-compensation")
+        if np.any(np.asarray(self.armature, dtype=float) != 0.0):
+            parts.append(f"armature={self.armature!r}".replace(" ", ""))
+        if self.contacts:
+            parts.append("contacts")
         return f"mujoco({','.join(parts)})"

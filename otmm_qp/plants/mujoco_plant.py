@@ -219,7 +219,7 @@ class MujocoPlant(Plant):
         mujoco.mj_forward(model, data)
         mass = np.zeros((model.nv, model.nv))
         mujoco.mj_fullM(model, data, mass)
-        inertia = np.diag(mass)[self._qvel_index] + model.dof_armature[self._qvel_index]
+        inertia = np.diag(mass)[self._qvel_index]  # M_ii(q0), the armature included
         omega = 2.0 * math.pi * self.frequency
         self.kp = omega**2 * inertia
         self.kd = 2.0 * self.damping_ratio * omega * inertia

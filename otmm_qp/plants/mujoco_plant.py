@@ -14,7 +14,12 @@ the same actuators:
 with :math:`K_{p,i} = \omega^2 M_{ii}(q_0)`, :math:`K_{d,i} = 2\zeta\omega M_{ii}(q_0)`,
 :math:`\omega = 2\pi f` (``frequency`` f [Hz], ``damping_ratio`` ζ) and :math:`M_{ii}(q_0)`
 the joint's diagonal of the mass matrix at the start — a decoupled servo of bandwidth f on
-the inertia the joint sees there. τ_max [N·m] is the URDF ``effort`` of each joint, applied
+the inertia the joint sees there. The mass matrix is the URDF links' plus ``armature``
+:math:`I_a` [kg·m²] on its diagonal (each drive's reflected rotor inertia; without it a URDF
+arm's ill-conditioned :math:`M` gives decentralised servos closed-loop modes several times
+faster than f, which chatter at the torque limits). No contact is simulated unless
+``contacts`` is true (the tasks, like the kinematic model, ignore self-collision).
+τ_max [N·m] is the URDF ``effort`` of each joint, applied
 as MuJoCo's joint ``actuatorfrcrange`` (the clip acts on the sum). The command is held over
 the control period ``dt``; MuJoCo steps ``ceil(dt / timestep)`` times at
 ``h = dt / substeps`` in between, with its ``implicitfast`` integrator (the servo damping is

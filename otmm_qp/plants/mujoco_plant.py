@@ -42,12 +42,19 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError, ParameterError, RobotLoadError
-from otmm_qp.limits.limit import per_joint
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import ArrayOf, Boolean, Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import (
+    ArrayOf,
+    Boolean,
+    Constraints,
+    Interval,
+    OneOf,
+    check_params,
+    per_joint,
+)
 
 __all__ = ["MujocoPlant"]
 

@@ -41,8 +41,9 @@ from numbers import Integral, Real
 from typing import Any, Literal, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
-from otmm_qp.exceptions import ParameterError, shown
+from otmm_qp.exceptions import DimensionError, ParameterError, shown
 
 __all__ = [
     "ArrayOf",
@@ -61,6 +62,7 @@ __all__ = [
     "declare",
     "describe",
     "parameters",
+    "per_joint",
     "signature_parameters",
 ]
 
@@ -469,3 +471,23 @@ def declaration_problems(owner: object, reserved: Sequence[str] = ()) -> list[st
             except ParameterError as error:
                 problems.append(f"default refused: {error}")
     return problems
+
+
+def per_joint(
+    value: float | Sequence[float] | npt.NDArray[np.float64] | None,
+    name: str,
+    nv: int,
+) -> npt.NDArray[np.float64] | None:
+    """A scalar or ``(nv,)`` parameter as an ``(nv,)`` float array (None stays None).
+
+    Raises:
+        DimensionError: ``value`` is neither a scalar nor of shape ``(nv,)``.
+    """
+    if value is None:
+        return None
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        array = np.full(nv, float(array))
+    if array.shape != (nv,):
+        raise DimensionError(name, (nv,), array.shape)
+    return array

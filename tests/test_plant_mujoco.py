@@ -150,3 +150,17 @@ def test_mujoco_not_installed(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(ConfigError, match=r"^plant.type: MuJoCo is not installed; pip install"):
         build_plant({"type": "mujoco"})
+
+
+def test_armature_adds_to_each_joints_inertia_and_is_checked_per_joint() -> None:
+    prep = panda()
+    gains = []
+    for armature in (0.0, 0.1, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]):
+        plant = build_plant({"type": "mujoco", "frequency": 10.0, "armature": armature})
+        plant.reset(prep.robot, prep.q0, prep.dt)
+        gains.append(plant.body.kp / (2.0 * np.pi * 10.0) ** 2)  # M_ii + I_a [kg·m²]
+    np.testing.assert_allclose(gains[1] - gains[0], 0.1, rtol=1e-9)
+    np.testing.assert_allclose(gains[2] - gains[0], np.arange(1, 8) / 10.0, rtol=1e-9)
+    with pytest.raises(ConfigError) as info:
+        check_plant({"type": "mujoco", "armature": [0.1, 0.1]}, prep.robot, prep.q0, prep.dt, "p")
+    assert "armature" in str(info.value) and "\n" not in str(info.value)

@@ -15,15 +15,12 @@ the robot and the control period ``dt`` [s]) and then evaluated each step:
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
 from typing import ClassVar, NamedTuple
 
-import numpy as np
-
-from otmm_qp.exceptions import DimensionError
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
+from otmm_qp.validation import per_joint
 
 __all__ = ["BaseLimit", "Box", "Limit", "Row", "RowLimit", "per_joint"]
 
@@ -134,23 +131,3 @@ class RowLimit(BaseLimit):
             state: The step's kinematic state.
             box: The step's joint-velocity box [rad/s], finite (±BIG for unlimited joints).
         """
-
-
-def per_joint(
-    value: float | Sequence[float] | FloatArray | None,
-    name: str,
-    nv: int,
-) -> FloatArray | None:
-    """A scalar or ``(nv,)`` parameter as an ``(nv,)`` float array (None stays None).
-
-    Raises:
-        DimensionError: ``value`` is neither a scalar nor of shape ``(nv,)``.
-    """
-    if value is None:
-        return None
-    array = np.asarray(value, dtype=float)
-    if array.ndim == 0:
-        array = np.full(nv, float(array))
-    if array.shape != (nv,):
-        raise DimensionError(name, (nv,), array.shape)
-    return array

@@ -14,7 +14,12 @@ the same actuators:
 with :math:`K_{p,i} = \omega^2 M_{ii}(q_0)`, :math:`K_{d,i} = 2\zeta\omega M_{ii}(q_0)`,
 :math:`\omega = 2\pi f` (``frequency`` f [Hz], ``damping_ratio`` ζ) and :math:`M_{ii}(q_0)`
 the joint's diagonal of the mass matrix at the start — a decoupled servo of bandwidth f on
-the inertia the joint sees there. τ_max [N·m] is the URDF ``effort`` of each joint, applied
+the inertia the joint sees there. The mass matrix is the URDF links' plus ``armature``
+:math:`I_a` [kg·m²] on its diagonal (each drive's reflected rotor inertia; without it a URDF
+arm's ill-conditioned :math:`M` gives decentralised servos closed-loop modes several times
+faster than f, which chatter at the torque limits). No contact is simulated unless
+``contacts`` is true (the tasks, like the kinematic model, ignore self-collision).
+τ_max [N·m] is the URDF ``effort`` of each joint, applied
 as MuJoCo's joint ``actuatorfrcrange`` (the clip acts on the sum). The command is held over
 the control period ``dt``; MuJoCo steps ``ceil(dt / timestep)`` times at
 ``h = dt / substeps`` in between, with its ``implicitfast`` integrator (the servo damping is
@@ -30,6 +35,7 @@ stores why and stops the run (its other runs keep their results).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from numbers import Real
 from typing import Any, ClassVar, Literal
 
@@ -40,7 +46,15 @@ from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant, PlantStep
 from otmm_qp.plants.urdf_dynamics import effort_limits
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import (
+    ArrayOf,
+    Boolean,
+    Constraints,
+    Interval,
+    OneOf,
+    check_params,
+    per_joint,
+)
 
 __all__ = ["MujocoPlant"]
 
@@ -59,7 +73,7 @@ MAX_SUBSTEPS = 1_000
 
 
 class MujocoPlant(Plant):
-    """MuJoCo body with per-joint PD servos on the integrated command.
+    r"""MuJoCo body with per-joint PD servos on the integrated command.
 
     Args:
         frequency: Servo bandwidth f [Hz], finite and > 0.
@@ -72,6 +86,11 @@ class MujocoPlant(Plant):
         effort_limit: Torque limit [N·m] for joints whose URDF has no positive ``effort``;
             None (default) refuses such a URDF.
         unstable_speed: Joint speed above which the simulation counts as unstable [rad/s].
+        armature: Reflected rotor inertia :math:`I_a` [kg·m²] added to each joint's inertia
+            (MuJoCo's joint ``armature``: :math:`M(q) + \operatorname{diag}(I_a)`), ≥ 0, a scalar
+            or one per joint; 0 (default): the URDF's link inertias alone.
+        contacts: Whether the links collide with each other (the peer model's collision
+            geometry); False (default): no contact is simulated, as in the kinematic model.
 
     Raises:
         ParameterError: A parameter out of range (naming it).
@@ -88,6 +107,10 @@ class MujocoPlant(Plant):
         "compensation": OneOf("gravity", "none"),
         "effort_limit": [Interval(Real, 0, None, closed="neither", unit="N·m or N"), None],
         "unstable_speed": Interval(Real, 0, None, closed="neither", unit="rad/s"),
+        "armature": ArrayOf(
+            Interval(Real, 0, None, closed="left", unit="kg·m²"), scalar=True, per="joint"
+        ),
+        "contacts": Boolean(),
     }
 
     def __init__(
@@ -99,6 +122,8 @@ class MujocoPlant(Plant):
         compensation: Literal["gravity", "none"] = "gravity",
         effort_limit: float | None = None,
         unstable_speed: float = 100.0,
+        armature: float | Sequence[float] = 0.0,
+        contacts: bool = False,
     ) -> None:
         check_params(self, locals())
         self.frequency = float(frequency)
@@ -108,6 +133,8 @@ class MujocoPlant(Plant):
         self.compensation = compensation
         self.effort_limit = None if effort_limit is None else float(effort_limit)
         self.unstable_speed = float(unstable_speed)
+        self.armature = armature
+        self.contacts = bool(contacts)
         try:
             import mujoco
         except ImportError:
@@ -133,14 +160,19 @@ class MujocoPlant(Plant):
             raise ConfigError("", f"MuJoCo model: {_one_line(error)}") from None
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.option.gravity = [0.0, 0.0, -9.81] if self.gravity else [0.0, 0.0, 0.0]
+        if not self.contacts:
+            spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        armature = per_joint(self.armature, "armature", robot.nv)
+        assert armature is not None
         joints = {j.name: j for j in spec.joints}
-        for name, limit in zip(robot.joint_names, self.tau_max, strict=True):
+        for name, limit, rotor in zip(robot.joint_names, self.tau_max, armature, strict=True):
             joint = joints.get(name)
             if joint is None:
                 raise ConfigError("", f"MuJoCo model: joint {name!r} is not in the model")
             joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
             joint.actfrcrange = [-float(limit), float(limit)]
             joint.actgravcomp = self.compensation == "gravity"
+            joint.armature = float(rotor)
             for kind in ("position", "velocity"):
                 actuator = spec.add_actuator()
                 actuator.name = f"otmm_{kind}_{name}"
@@ -199,7 +231,7 @@ class MujocoPlant(Plant):
         mujoco.mj_forward(model, data)
         mass = np.zeros((model.nv, model.nv))
         mujoco.mj_fullM(model, data, mass)
-        inertia = np.diag(mass)[self._qvel_index] + model.dof_armature[self._qvel_index]
+        inertia = np.diag(mass)[self._qvel_index]  # M_ii(q0), the armature included
         omega = 2.0 * math.pi * self.frequency
         self.kp = omega**2 * inertia
         self.kd = 2.0 * self.damping_ratio * omega * inertia
@@ -261,4 +293,8 @@ class MujocoPlant(Plant):
             parts.append("no-gravity")
         if self.compensation == "none":
             parts.append("no-compensation")
+        if np.any(np.asarray(self.armature, dtype=float) != 0.0):
+            parts.append(f"armature={self.armature!r}".replace(" ", ""))
+        if self.contacts:
+            parts.append("contacts")
         return f"mujoco({','.join(parts)})"

@@ -13,6 +13,10 @@ preset needs the arm's joint efforts (a URDF ``effort`` per joint).
                 gain 300 as ω [1/s]), 2 ms step
 ``ur_cb3``      as ``ur_e_series`` with a latency of 2 periods (125 Hz instead of 500 Hz)
 ==============  ===================================================================
+
+Every preset body gives each joint a reflected rotor inertia (``armature``) of 0.1 kg·m², the
+value of MuJoCo Menagerie's ``universal_robots_ur5e/ur5e.xml`` and
+``franka_emika_panda/panda.xml``; no contact is simulated (the MuJoCo plant's default).
 """
 
 from __future__ import annotations
@@ -23,19 +27,28 @@ from typing import Any
 
 from otmm_qp.exceptions import ConfigError
 
-__all__ = ["PRESET_KEY", "PRESETS", "expand_preset"]
+__all__ = ["ARMATURE", "PRESETS", "PRESET_KEY", "expand_preset"]
 
 #: The key of a preset entry.
 PRESET_KEY = "preset"
 
+#: Reflected rotor inertia of every joint [kg·m²]: MuJoCo Menagerie's UR5e and Panda models.
+ARMATURE = 0.1
+
 _UR_SERVO = {"type": "mujoco", "frequency": 300.0 / (2.0 * math.pi), "damping_ratio": 1.0,
-             "timestep": 0.002}  # fmt: skip
+             "timestep": 0.002, "armature": ARMATURE}  # fmt: skip
 
 #: Preset name → its stages (``{type, **params}``), in order.
 PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
     "franka_fci": (
         {"type": "delay", "steps": 1},
-        {"type": "mujoco", "frequency": 100.0, "damping_ratio": 1.0, "timestep": 0.001},
+        {
+            "type": "mujoco",
+            "frequency": 100.0,
+            "damping_ratio": 1.0,
+            "timestep": 0.001,
+            "armature": ARMATURE,
+        },
     ),
     "ur_e_series": (
         {"type": "delay", "steps": 1},

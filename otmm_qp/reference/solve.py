@@ -63,8 +63,6 @@ ROUND_ITERATIONS = 2
 SETTLE = 1e-2
 #: Smallest Lawson weight (relative to the mean), so no sample is dropped for good.
 WEIGHT_FLOOR = 1e-6
-#: Relative slack on a candidate's joint steps (its ``q̇ dt`` after rounding) [-].
-STEP_SLACK = 1e-9
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
 #: Standard deviation of the seeded perturbation starts [rad].
@@ -101,23 +99,8 @@ class _Path:
 
 
 def admissible(problem: TrackingProblem, path: FloatArray, errors: FloatArray) -> bool:
-    """Whether a candidate path keeps every limit the reference keeps.
-
-    Same shape and start ``q_0`` as the reference, finite, inside the position limits and
-    with every step within ``v_max dt`` (up to :data:`STEP_SLACK` relative).
-    """
-    path = np.asarray(path, dtype=float)
-    shape = (problem.samples, problem.nv)
-    if path.shape != shape or errors.shape != (problem.samples, problem.robot.task_dim):
-        return False
-    if not (np.all(np.isfinite(path)) and np.all(np.isfinite(errors))):
-        return False
-    if not np.array_equal(path[0], problem.q0):
-        return False
-    if np.any(path < problem.lower) or np.any(path > problem.upper):
-        return False
-    limit = problem.speed * problem.dt * (1.0 + STEP_SLACK)
-    return bool(np.all(np.abs(np.diff(path, axis=0)) <= limit))
+    """Whether a candidate path keeps every limit the reference keeps (:mod:`.limits`)."""
+    return problem.limits.keeps(path, errors)
 
 
 def solve_reference(

@@ -17,7 +17,8 @@ limit:
    start.
 3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
    epigraph SQP
-   (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`) from the ``starts`` best distinct
+   with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
+   the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
    (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
    half of it for the others; a task already achievable gets the best start only, with
@@ -46,7 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.reference.bound import LowerBound, lower_bound
-from otmm_qp.reference.epigraph import EpigraphOutcome, EpigraphSQP
+from otmm_qp.reference.conic import ConicEpigraph
+from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
@@ -259,7 +261,7 @@ def _polish(
         The outcome of the solve that found the best path (its step and KKT residual).
     """
     settings = problem.settings
-    solver = EpigraphSQP(problem)
+    solver = ConicEpigraph(problem)
     certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
     starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
     rng = np.random.default_rng(settings.seed)
@@ -305,7 +307,7 @@ def _position_optimum(
     position = problem.position_only()
     try:
         cap = settings.polish_iterations // 2
-        outcome = EpigraphSQP(position).solve(best.path, cap, deadline)
+        outcome = ConicEpigraph(position).solve(best.path, cap, deadline)
     except SolverFailure:
         return value, bound.position_value
     errors = problem.errors(outcome.path)

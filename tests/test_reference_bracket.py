@@ -313,3 +313,38 @@ def test_a_urdf_whose_limits_leave_no_motion_is_one_line_exit_2(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0] and "urdf" in err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_cone_polish_converges_where_the_errors_are_small(ur5_pose: Robot, seed: int) -> None:
+    """From a path a little off a reachable one (errors of a few hundredths of a tolerance),
+    the cone subproblems converge (KKT test) within every limit, below the start and no higher
+    than the linearised-norm epigraph solve at the same cap."""
+    import math
+
+    from otmm_qp.reference.conic import ConicEpigraph
+    from otmm_qp.reference.epigraph import KKT_TOLERANCE, EpigraphSQP
+    from otmm_qp.reference.warm_start import joint_path_start
+    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+
+    rng = np.random.default_rng(seed)
+    q0 = rng.uniform(-1.5, 1.5, 6)
+    knots = q0 + np.cumsum(rng.uniform(-0.2, 0.2, (3, 6)), axis=0)
+    x0 = ur5_pose.forward(ur5_pose.configuration(q0))
+    waypoints = np.vstack([q0, knots]).tolist()
+    trajectory = JointWaypointsTrajectory(x0, ur5_pose, waypoints, duration=0.3)
+    tight = ReferenceSettings(position_tolerance=0.02, orientation_tolerance=0.1)
+    problem = TrackingProblem(ur5_pose, trajectory, q0, DT, 0.3, tight)
+    exact = joint_path_start(problem, trajectory)
+    assert exact is not None
+    start = exact + rng.normal(0.0, 2e-3, exact.shape)
+    start[0] = q0
+    start = project_path(start, problem.lower, problem.upper, problem.step)
+    first = float(np.max(problem.merits(problem.errors(start))[1:]))
+    cone = ConicEpigraph(problem).solve(start, 20, math.inf)
+    linear = EpigraphSQP(problem).solve(start, 20, math.inf)
+    assert cone.converged and cone.kkt <= KKT_TOLERANCE
+    assert problem.limits.keeps(cone.path, problem.errors(cone.path))
+    assert cone.merit <= first
+    assert cone.merit <= linear.merit * (1.0 + 1e-9)
+    assert cone.merit == pytest.approx(float(np.max(problem.merits(problem.errors(cone.path)))))

@@ -676,8 +676,9 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
     """Write ``robot``'s median accuracy vs median peak joint speed, with CIs; its path.
 
     Accuracy is the oracle-relative max error (the reference is the point at 0; symmetric-log
-    axis, since a controller can beat a heuristic reference on some tasks and the relative
-    error can be negative), or the max error (log axis) when no reference is stored.
+    axis, as medians can be 0; defined only on rows that kept every limit, so ``≥ 0``: the
+    note below the reference can only come from older stored rows), or the max error (log
+    axis) when no reference is stored.
     """
     import matplotlib.pyplot as plt
 

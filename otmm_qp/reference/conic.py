@@ -19,8 +19,11 @@ the same ratio test on the true ``φ = max m + ε ℓ̄``, every trial projected
 **Convergence test** (stored): the step ``‖δ‖_∞`` [rad] and the KKT residual of the cone
 program at ``δ = 0, t = max m`` with its multipliers ``z``,
 ``r = max(‖c + Aᵀz‖_∞, max_cones |⟨z_c, s_c⟩|)`` (stationarity and complementarity, ``s`` the
-slacks at that point). It stops when ``r ≤`` :data:`KKT_TOLERANCE`, ``‖δ‖_∞ ≤``
-:data:`STEP_TOLERANCE`, the model predicts no decrease, at the iteration cap or the deadline.
+slacks at that point). Those multipliers are the step's, so they certify ``δ = 0`` only when
+the step gains nothing either: it stops as converged when ``r ≤`` :data:`KKT_TOLERANCE` *and*
+the model's predicted decrease is ``≤`` :data:`KKT_TOLERANCE`, or ``‖δ‖_∞ ≤``
+:data:`STEP_TOLERANCE`; otherwise when the model predicts no decrease, at the iteration cap or
+the deadline.
 """
 
 from __future__ import annotations
@@ -245,8 +248,11 @@ class ConicEpigraph:
             longest = float(np.max(np.abs(delta)))
             best.step = longest
             best.kkt = self._kkt(cost, a, b, z, dims, top)
-            if best.kkt <= KKT_TOLERANCE or longest <= STEP_TOLERANCE or predicted <= 0.0:
-                best.converged = best.kkt <= KKT_TOLERANCE or longest <= STEP_TOLERANCE
+            # the multipliers are the step's: they certify δ = 0 only when the model gains
+            # nothing from the step either
+            stationary = best.kkt <= KKT_TOLERANCE and predicted <= KKT_TOLERANCE
+            if stationary or longest <= STEP_TOLERANCE or predicted <= 0.0:
+                best.converged = stationary or longest <= STEP_TOLERANCE
                 break
             trial = current.copy()
             trial[1:] += delta

@@ -28,7 +28,7 @@ limit:
    limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
 5. **Position optimum** (the one reference of every claim about *position* error:
    oracle-relative error, graceful position bound, trade-off): the smallest
-   ``max_k ‖e_pos,k‖`` over every path above, polished by the epigraph SQP on position alone
+   ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
    (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
    Position tasks: the same path as the upper bound.
 
@@ -252,7 +252,7 @@ def _distinct(pool: list[_Path], count: int, key: str) -> list[_Path]:
 def _polish(
     problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float
 ) -> EpigraphOutcome:
-    """Epigraph SQP from the best start, then from the next ones until the bracket closes.
+    """Cone epigraph solve from the best start, then from the next ones until the bracket closes.
 
     The next ones: the next best distinct starts and seeded perturbations of the best;
     every result joins ``pool``.

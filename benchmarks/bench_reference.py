@@ -3,6 +3,7 @@
     python benchmarks/bench_reference.py --tasks 40 [--config configs/studies/arms.yaml]
     python benchmarks/bench_reference.py --tasks 0 --workers 2     # the whole study
     python benchmarks/bench_reference.py --tasks 200 --check 20    # + independent re-solve
+    python benchmarks/bench_reference.py --stored DIR --check 40   # check a stored study only
 
 Scales the study's generator counts to about ``--tasks`` tasks in total (0: the study as
 shipped), runs it into a fresh directory (``--workers 1``: in-process; more: an embedded
@@ -135,6 +136,31 @@ def independent_check(
     }
 
 
+def _check_stored(out: Path, count: int, target: Path | None) -> int:
+    """The labels table and the independent check of the study stored in ``out``."""
+    from otmm_qp.studies.storage import read_study_folder
+
+    config, _ = read_study_folder(out)
+    table = read_episodes(out)
+    rows = [
+        r for r in (table.to_pylist() if table is not None else []) if r["controller"] == "oracle"
+    ]
+    check = independent_check(config, rows, count)
+    print(f"{out}: {len(rows)} tasks (stored)")
+    _print_check(check)
+    if target is not None:
+        target.write_text(json.dumps({"groups": summarise(rows), "check": check}, indent=2))
+    return 0
+
+
+def _print_check(check: dict[str, Any]) -> None:
+    if check["tasks"]:
+        print(f"independent SLSQP re-solve of {check['tasks']} tasks: improves upper by > 5 % "
+              f"on {check['improved']} ({100 * check['improved'] / check['tasks']:.0f} %; "
+              f"{check['improved_beyond_resolution']} also by > 0.01 tolerances), "
+              f"largest improvement {100 * check['largest']:.1f} %")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print (and optionally write) its numbers."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -144,7 +170,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     parser.add_argument("--check", type=int, default=0, help="re-solve this many tasks by SLSQP")
     parser.add_argument("--out", type=Path, help="keep the study here (default: a temp dir)")
+    parser.add_argument(
+        "--stored", type=Path, help="read this stored study instead of running one (--check only)"
+    )
     args = parser.parse_args(argv)
+    if args.stored is not None:
+        return _check_stored(args.stored, args.check, args.json)
     config = scaled(args.config, args.tasks)
     plan = plan_study(config, str(args.config))
     with tempfile.TemporaryDirectory() as scratch:
@@ -183,12 +214,7 @@ def main(argv: list[str] | None = None) -> int:
         gap, times = group["median_gap"], (group[k] for k in ("median_s", "p90_s", "max_s"))
         print(f"| {name} | {group['tasks']} | {counts} | {gap:.3g} | "
               + " | ".join(f"{t:.3f}" for t in times) + " |")  # fmt: skip
-    check = results["check"]
-    if check["tasks"]:
-        print(f"independent SLSQP re-solve of {check['tasks']} tasks: improves upper by > 5 % "
-              f"on {check['improved']} ({100 * check['improved'] / check['tasks']:.0f} %; "
-              f"{check['improved_beyond_resolution']} also by > 0.01 tolerances), "
-              f"largest improvement {100 * check['largest']:.1f} %")  # fmt: skip
+    _print_check(results["check"])
     print(f"reference {reference_s:.1f} s of {outcome.compute_seconds:.1f} s compute "
           f"= {100 * results['reference_share']:.1f} % "
           f"({results['per_task_s']:.3f} s per task)")  # fmt: skip

@@ -106,15 +106,15 @@ def _check_paired_sentence(report: str) -> None:
     """The paired OTMM + pinv vs pinv counts and Holm p are the report's."""
     text = " ".join(SOURCE.read_text(encoding="utf-8").split())
     found = re.search(
-        r"strictly lower oracle-relative max error than pinv on (\d+)–(\d+) of the (\d+) "
-        r"2-link tasks "
-        r"\(tied on (\d+)–(\d+), higher on (\d+)–(\d+)\); the Wilcoxon test favours "
-        r"OTMM \+ pinv \(Holm p ≤ ([0-9.]+)\)",
+        r"where both kept them, (\d+) of the 30 2-link tasks, OTMM \+ pinv has a strictly lower "
+        r"oracle-relative max error than pinv on (\d+)–(\d+) of them "
+        r"\(tied on (\d+)–(\d+), higher on (\d+)–(\d+)\); no Wilcoxon test separates the "
+        r"two \(Holm p ≥ ([0-9.]+)\)",
         text,
     )
     assert found, "the paired sentence changed its form"
     lower, ties, higher, holm = (
-        sorted(map(int, found.group(1, 2))),
+        sorted(map(int, found.group(2, 3))),
         sorted(map(int, found.group(4, 5))),
         sorted(map(int, found.group(6, 7))),
         float(found.group(8)),
@@ -130,6 +130,6 @@ def _check_paired_sentence(report: str) -> None:
     assert sorted(int(r[3]) for r in rows) == lower
     assert sorted(int(r[4]) for r in rows) == ties
     assert sorted(int(r[5]) for r in rows) == higher
-    assert all(r[2] == found.group(3) for r in rows)
-    assert max(float(r[9]) for r in rows) == holm
-    assert all(r[10].startswith("OTMM+pinv") for r in rows)
+    assert all(r[2] == found.group(1) for r in rows)  # the tasks where both kept the limits
+    assert min(float(r[9]) for r in rows) == holm
+    assert all(float(r[9]) > 0.05 for r in rows)  # not separated

@@ -216,8 +216,9 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(dict(STUDY, controllers=STUDY["controllers"][:1])))
     out = tmp_path / "bench.json"
+    kept = tmp_path / "study"
     argv = ["--tasks", "3", "--config", str(config), "--json", str(out), "--check", "1"]
-    assert module.main(argv) == 0
+    assert module.main([*argv, "--out", str(kept)]) == 0
     numbers = json.loads(out.read_text())
     assert numbers["check"]["tasks"] == 1 and numbers["check"]["improved"] in (0, 1)
     assert numbers["tasks"] == 3 and numbers["episodes"] == 6
@@ -225,3 +226,10 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     assert 0.0 < numbers["reference_share"] < 1.0
     assert sum(g["tasks"] for g in numbers["groups"].values()) == 3
     assert "% (" in capsys.readouterr().out
+    # the check alone, on the stored study: the same numbers (deterministic SLSQP)
+    again = tmp_path / "again.json"
+    assert module.main(["--stored", str(kept), "--check", "1", "--json", str(again)]) == 0
+    stored = json.loads(again.read_text())
+    assert stored["check"]["ratios"] == numbers["check"]["ratios"]
+    assert stored["groups"] == numbers["groups"]
+    assert "independent SLSQP re-solve of 1 tasks" in capsys.readouterr().out

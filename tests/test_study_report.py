@@ -133,7 +133,10 @@ def test_oracle_rows_are_the_reference_never_a_competitor(with_oracle: Path) -> 
         if row["controller"] == "oracle":
             continue
         expected = row["max_error"] - row["reference.max_error"]
-        assert row[RELATIVE_ERROR] == pytest.approx(expected)
+        if row["kept_limits"]:
+            assert row[RELATIVE_ERROR] == pytest.approx(expected)
+        else:  # a row that broke a limit has no yardstick within the limits
+            assert row[RELATIVE_ERROR] is None and row["failure_causes"]
         assert row["reference.achievable"] == (row["generator"] != "beyond_reach")
     write_study_report(with_oracle)
     report = (with_oracle / "study_report.md").read_text()

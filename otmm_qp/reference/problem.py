@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from otmm_qp.reference.limits import PathLimits
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -42,6 +43,7 @@ class TrackingProblem:
         scale: Diagonal of ``S``, shape ``(n,)``.
         lower, upper: Position limits [rad or m], shapes ``(nv,)`` (±inf: none).
         step: Largest joint step per sample ``v_max·dt`` [rad], shape ``(nv,)`` (inf: none).
+        limits: The :class:`~otmm_qp.reference.limits.PathLimits` every path keeps.
     """
 
     def __init__(
@@ -69,15 +71,12 @@ class TrackingProblem:
         if self.pose:
             # A part without a tolerance is not in the merit: not in the least squares either.
             self.scale[3:] = 1.0 / orientation if orientation is not None else 0.0
-        lower, upper = robot.position_limits
-        self.lower = np.asarray(lower, dtype=float)
-        self.upper = np.asarray(upper, dtype=float)
-        speed = np.asarray(robot.velocity_limits, dtype=float).copy()
-        if settings.speed_limit is not None:
-            speed = np.minimum(speed, settings.speed_limit)
+        self.limits = PathLimits.of(robot, settings, self.q0, self.dt, duration)
+        self.lower = self.limits.lower
+        self.upper = self.limits.upper
+        self.speed = self.limits.speed
         # Just inside the bound, so (q_{k+1} − q_k)/dt never reads above it after rounding.
-        self.speed = speed
-        self.step = speed * self.dt * (1.0 - 1e-9)
+        self.step = self.speed * self.dt * (1.0 - 1e-9)
 
     def position_only(self) -> TrackingProblem:
         """The same task with its merit on position alone (orientation free, scaled by 0)."""

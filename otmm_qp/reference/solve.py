@@ -17,7 +17,8 @@ limit:
    start.
 3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
    epigraph SQP
-   (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`) from the ``starts`` best distinct
+   with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
+   the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
    (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
    half of it for the others; a task already achievable gets the best start only, with
@@ -27,7 +28,7 @@ limit:
    limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
 5. **Position optimum** (the one reference of every claim about *position* error:
    oracle-relative error, graceful position bound, trade-off): the smallest
-   ``max_k ‖e_pos,k‖`` over every path above, polished by the epigraph SQP on position alone
+   ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
    (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
    Position tasks: the same path as the upper bound.
 
@@ -46,7 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.reference.bound import LowerBound, lower_bound
-from otmm_qp.reference.epigraph import EpigraphOutcome, EpigraphSQP
+from otmm_qp.reference.conic import ConicEpigraph
+from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
@@ -63,8 +65,6 @@ ROUND_ITERATIONS = 2
 SETTLE = 1e-2
 #: Smallest Lawson weight (relative to the mean), so no sample is dropped for good.
 WEIGHT_FLOOR = 1e-6
-#: Relative slack on a candidate's joint steps (its ``q̇ dt`` after rounding) [-].
-STEP_SLACK = 1e-9
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
 #: Standard deviation of the seeded perturbation starts [rad].
@@ -101,23 +101,8 @@ class _Path:
 
 
 def admissible(problem: TrackingProblem, path: FloatArray, errors: FloatArray) -> bool:
-    """Whether a candidate path keeps every limit the reference keeps.
-
-    Same shape and start ``q_0`` as the reference, finite, inside the position limits and
-    with every step within ``v_max dt`` (up to :data:`STEP_SLACK` relative).
-    """
-    path = np.asarray(path, dtype=float)
-    shape = (problem.samples, problem.nv)
-    if path.shape != shape or errors.shape != (problem.samples, problem.robot.task_dim):
-        return False
-    if not (np.all(np.isfinite(path)) and np.all(np.isfinite(errors))):
-        return False
-    if not np.array_equal(path[0], problem.q0):
-        return False
-    if np.any(path < problem.lower) or np.any(path > problem.upper):
-        return False
-    limit = problem.speed * problem.dt * (1.0 + STEP_SLACK)
-    return bool(np.all(np.abs(np.diff(path, axis=0)) <= limit))
+    """Whether a candidate path keeps every limit the reference keeps (:mod:`.limits`)."""
+    return problem.limits.keeps(path, errors)
 
 
 def solve_reference(
@@ -267,7 +252,7 @@ def _distinct(pool: list[_Path], count: int, key: str) -> list[_Path]:
 def _polish(
     problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float
 ) -> EpigraphOutcome:
-    """Epigraph SQP from the best start, then from the next ones until the bracket closes.
+    """Cone epigraph solve from the best start, then from the next ones until the bracket closes.
 
     The next ones: the next best distinct starts and seeded perturbations of the best;
     every result joins ``pool``.
@@ -276,7 +261,7 @@ def _polish(
         The outcome of the solve that found the best path (its step and KKT residual).
     """
     settings = problem.settings
-    solver = EpigraphSQP(problem)
+    solver = ConicEpigraph(problem)
     certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
     starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
     rng = np.random.default_rng(settings.seed)
@@ -322,7 +307,7 @@ def _position_optimum(
     position = problem.position_only()
     try:
         cap = settings.polish_iterations // 2
-        outcome = EpigraphSQP(position).solve(best.path, cap, deadline)
+        outcome = ConicEpigraph(position).solve(best.path, cap, deadline)
     except SolverFailure:
         return value, bound.position_value
     errors = problem.errors(outcome.path)

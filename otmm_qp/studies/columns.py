@@ -114,6 +114,12 @@ _OUTCOME = (
     ("status", _S, "ok, stopped (ended early) or error (never ran)"),
     ("error_message", _S, "one-line error or stop reason (null when none)"),
     ("success", _B, "success as judged when the row was stored (load() judges it again)"),
+    (
+        "within_reference_limits",
+        _B,
+        "whether its path, from q0 to the end, kept the limits its reference keeps (position "
+        "limits, every step within the reference's v_max dt); null: no reference",
+    ),
 )
 _STUDY_RATIOS = tuple(m for m in STUDY_METRICS if m.name != "oracle_relative_error")
 
@@ -126,6 +132,10 @@ EPISODE_COLUMNS: tuple[Column, ...] = (
     *(Column(n, t, d, "outcome") for n, t, d in _OUTCOME),
     *(Column(m.name, _metric_type(m), _metric_doc(m), "metric") for m in _STUDY_RATIOS),
 )
+#: Stored column: whether a row's path kept the limits of its task's reference.
+KEPT_REFERENCE_LIMITS = "within_reference_limits"
+#: Derived column: whether a row kept every limit (its oracle-relative error is defined).
+KEPT_LIMITS = "kept_limits"
 #: Columns no stored row lacks.
 REQUIRED = ("study", "episode_key")
 #: Columns :func:`otmm_qp.studies.load` adds (judged once, on read).
@@ -137,9 +147,17 @@ DERIVED_COLUMNS: tuple[Column, ...] = (
         "derived",
     ),
     Column(
+        "kept_limits",
+        _B,
+        "whether the row kept every limit: ran to the end, no speed or position_limit failure "
+        "cause, within_reference_limits not false (the reference row: true)",
+        "derived",
+    ),
+    Column(
         "oracle_relative_error",
         _F,
-        "max_error − reference.max_error [m] (NaN without a reference)",
+        "max_error − reference.max_error [m], defined only where kept_limits (null for a row "
+        "that broke a limit; NaN without a reference); ≥ 0 by construction",
         "derived",
     ),
     Column("failure_causes", pa.list_(_S), "why the episode failed (empty: a success)", "derived"),

@@ -17,7 +17,9 @@ import numpy as np
 from otmm_qp.config.schema import ControllerConfig
 from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
 from otmm_qp.reference import Candidate
+from otmm_qp.reference.limits import PathLimits
 from otmm_qp.simulation.run_result import RunResult
+from otmm_qp.studies.columns import KEPT_REFERENCE_LIMITS
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.oracle import (
@@ -26,6 +28,7 @@ from otmm_qp.studies.oracle import (
     failed_columns,
     oracle_columns,
     oracle_fields,
+    reference_settings,
     task_reference,
 )
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
@@ -164,6 +167,8 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     The controllers run first: every path of theirs that kept the limits is a candidate of
     the task's reference, solved next (so no known path beats it); then every controller
     row's stored ``success`` is judged with that reference, by the rule the report applies.
+    Each controller row records whether its path kept the reference's limits
+    (``within_reference_limits``, :class:`~otmm_qp.reference.limits.PathLimits`).
     A resumed task whose reference row is stored already is judged with the stored one
     (``unit.reference``). The reference row comes first in the rows, as before.
     """
@@ -172,6 +177,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     rows: list[dict[str, Any]] = []
     candidates: list[Candidate] = []
     oracle_key: str | None = None
+    limits = _path_limits(config, built)
     for key, controller, mode in unit.episodes:
         if controller == REFERENCE_INDEX:
             oracle_key = key
@@ -187,6 +193,10 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         if run is not None:
             if unit.time_series:
                 result.series.append(_series(run, key, config.time_series.stride))
+            if limits is not None:
+                row[KEPT_REFERENCE_LIMITS] = row["status"] == "ok" and limits.keeps(
+                    run.q, run.error
+                )
             if row["status"] == "ok":
                 candidates.append(
                     Candidate(str(row["controller"]), run.q, run.error, float(row["max_error"]))
@@ -212,6 +222,14 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         if row.get("status") != "error":
             row["success"] = is_success({**reference, **row}, config.success)
     result.rows.extend(rows)
+
+
+def _path_limits(config: StudyConfig, built: BuiltTask | None) -> PathLimits | None:
+    """The limits the task's reference keeps (None without a reference or a task)."""
+    if built is None or not config.reference.enabled:
+        return None
+    settings = reference_settings(config)
+    return PathLimits.of(built.robot, settings, built.task.q0, config.dt, built.duration)
 
 
 def _controller_episode(

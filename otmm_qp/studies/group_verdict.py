@@ -111,9 +111,12 @@ def kinds_table(
         if mine is None:
             where = "did not run"
         else:
-            place = (
-                "on the front" if mine.on_front else "dominated by " + ", ".join(mine.dominated_by)
-            )
+            if mine.on_front:
+                place = "on the front"
+            elif mine.dominated_by:
+                place = "dominated by " + ", ".join(mine.dominated_by)
+            else:  # a median is undefined (e.g. no oracle-relative error: limits broken)
+                place = "not placed (an objective has no median)"
             where = f"{_medians(mine)}; {place}; {_verdict(mine)}"
         meeting = " / ".join(", ".join(g.meeting(f)) or "none" for f in ("all", "best"))
         lines.append(f"| {g.group} ({g.tasks}) | {cells[0]} | {cells[1]} | {where} | {meeting} |")

@@ -31,7 +31,7 @@ from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_PAIRED, Metric
 from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
-from otmm_qp.studies.columns import number
+from otmm_qp.studies.columns import KEPT_LIMITS, number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
 from otmm_qp.studies.document import Figure, Heading, Item, to_html, to_markdown
 from otmm_qp.studies.formatting import fmt as _fmt
@@ -518,6 +518,22 @@ def _mcnemar_table(tests: list[PairedRates], robot: str) -> list[Item]:
     return out
 
 
+def _undefined_line(rows: Rows, robot: str) -> str:
+    """Which rows have no oracle-relative error on ``robot``: those that broke a limit."""
+    own = [r for r in rows.select(robot=robot) if not is_reference(r)]
+    counts = {
+        name: sum(1 for r in own if r["controller"] == name and not r.get(KEPT_LIMITS))
+        for name in rows.controllers()
+    }
+    broken = [f"{name} {k} of {sum(r['controller'] == name for r in own)}"
+              for name, k in counts.items() if k]  # fmt: skip
+    return (
+        "The oracle-relative error is defined only on rows that kept every limit "
+        "(`kept_limits`): the reference is the optimum within the limits. Null, so left out of "
+        "the pairs: " + ("; ".join(broken) if broken else "none") + "."
+    )
+
+
 def _paired_table(rows: Rows, robot: str, metric: str) -> list[Item]:
     """Markdown table of the paired comparisons of ``metric`` on ``robot`` (Holm p < 0.05: *)."""
     out: list[Item] = [
@@ -530,6 +546,8 @@ def _paired_table(rows: Rows, robot: str, metric: str) -> list[Item]:
         "Hodges–Lehmann | Wilcoxon p | Holm p | favours |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    if metric == RELATIVE_ERROR:
+        out[3:3] = [_undefined_line(rows, robot), ""]
     for r in paired_for(rows, robot, metric):
         side = r.favoured or "neither"
         flags = (" *" if r.significant else "") + ("" if r.consistent else " ⚠")
@@ -651,8 +669,9 @@ def _pareto_figure(out: Path, rows: Rows, robot: str) -> str:
     """Write ``robot``'s median accuracy vs median peak joint speed, with CIs; its path.
 
     Accuracy is the oracle-relative max error (the reference is the point at 0; symmetric-log
-    axis, since a controller can beat a heuristic reference on some tasks and the relative
-    error can be negative), or the max error (log axis) when no reference is stored.
+    axis, as medians can be 0; defined only on rows that kept every limit, so ``≥ 0``: the
+    note below the reference can only come from older stored rows), or the max error (log
+    axis) when no reference is stored.
     """
     import matplotlib.pyplot as plt
 

@@ -10,8 +10,10 @@ Every declared column (:data:`~otmm_qp.studies.columns.EPISODE_COLUMNS`) is ther
 declared type; each task's ``reference.*`` columns (from its ``oracle`` row) are joined onto
 its other rows; ``success`` and ``failure_causes`` are judged here, once, by
 :func:`~otmm_qp.studies.criteria.failure_causes`; ``oracle_relative_error`` =
-``max_error − reference.max_error`` [m]. Only the rows of the study ``study.json`` names are
-read; what was left out, and parts of an older schema, are said in one line each.
+``max_error − reference.max_error`` [m], defined (not null) only for the rows that kept every
+limit (``kept_limits``: the reference is the optimum *within* the limits). Only the rows of
+the study ``study.json`` names are read; what was left out, and parts of an older schema, are
+said in one line each.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from typing import Any
 import pyarrow as pa
 
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.studies.columns import DERIVED_COLUMNS, number
+from otmm_qp.studies.columns import DERIVED_COLUMNS, KEPT_LIMITS, KEPT_REFERENCE_LIMITS, number
 from otmm_qp.studies.criteria import failure_causes
 from otmm_qp.studies.keys import episode_id
+from otmm_qp.studies.limit_keeping import LIMIT_CAUSES
 from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.storage import read_study_folder
@@ -86,8 +89,7 @@ def join_reference(rows: list[dict[str, Any]]) -> None:
     """Copy each ``oracle`` row's ``reference.*`` columns onto the rows of its task, in place.
 
     Columns already on a row are kept; ``reference.max_error`` falls back to the oracle row's
-    ``max_error`` and ``reference.final_error`` is its ``final_error``. Then every row gets
-    :data:`RELATIVE_ERROR` = ``max_error − reference.max_error`` (NaN without a reference).
+    ``max_error`` and ``reference.final_error`` is its ``final_error``.
     """
     references: dict[object, dict[str, Any]] = {}
     for row in rows:
@@ -97,11 +99,44 @@ def join_reference(rows: list[dict[str, Any]]) -> None:
         for name, value in references.get(task_of(row), {}).items():
             if not _known(row.get(name)):
                 row[name] = value
-        row[RELATIVE_ERROR] = number(row, "max_error") - number(row, "reference.max_error")
+
+
+def kept_limits(row: dict[str, Any]) -> bool:
+    """Whether a judged row kept every limit (so its oracle-relative error is defined).
+
+    The reference row always does. Another row does when it ran to the end (``status`` ok,
+    ``completed``), has no limit failure cause (:data:`LIMIT_CAUSES`: the study's speed and
+    position-limit criteria) and its path kept the reference's own limits
+    (``within_reference_limits`` not false; null in parts stored before the column).
+    """
+    if is_reference(row):
+        return True
+    if row.get("status") != "ok" or not row.get("completed"):
+        return False
+    if any(cause in LIMIT_CAUSES for cause in row.get("failure_causes", ())):
+        return False
+    return row.get(KEPT_REFERENCE_LIMITS) is not False
+
+
+def relative_error(row: dict[str, Any]) -> float | None:
+    """``max_error − reference.max_error`` [m]; None (null) for a row that broke a limit.
+
+    Every row that kept every limit (:func:`kept_limits`) was a candidate of its reference,
+    which is never above it, so the value is ``≥ 0`` wherever it is defined; a row that broke
+    a limit may have bought accuracy with it, and a reference within the limits is no
+    yardstick for it. NaN without a reference.
+    """
+    if not row.get(KEPT_LIMITS):
+        return None
+    return number(row, "max_error") - number(row, "reference.max_error")
 
 
 def judged_rows(config: StudyConfig, rows: list[dict[str, Any]]) -> None:
-    """Join the references and judge every row once (``failure_causes``, ``success``), in place."""
+    """Join the references and judge every row once, in place.
+
+    ``failure_causes``, ``success``, :data:`KEPT_LIMITS` (:func:`kept_limits`) and
+    :data:`RELATIVE_ERROR` (:func:`relative_error`).
+    """
     join_reference(rows)
     for row in rows:
         if not row.get("episode_id"):
@@ -109,6 +144,8 @@ def judged_rows(config: StudyConfig, rows: list[dict[str, Any]]) -> None:
         causes = () if is_reference(row) else failure_causes(row, config.success)
         row["failure_causes"] = list(causes)
         row["success"] = not causes
+        row[KEPT_LIMITS] = kept_limits(row)
+        row[RELATIVE_ERROR] = relative_error(row)
 
 
 @dataclass

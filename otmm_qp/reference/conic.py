@@ -1,0 +1,276 @@
+r"""The min-max solve with second-order-cone subproblems: the norm kept exact, the error linearised.
+
+Same problem as :mod:`otmm_qp.reference.epigraph` (``min t + ε ℓ̄`` s.t. every sample's
+``m_{k,p} = ‖e_{k,p}‖/tol_p ≤ t``, the limits as constraints), but each iteration linearises
+the *error* ``e_{k,p}(q_k + δ_k) ≈ e_{k,p} − J_{k,p} δ_k`` (Gauss–Newton) instead of its norm:
+
+.. math::
+    \min_{\delta, t}\; t + \varepsilon(\bar\ell + \bar g^\top\delta) + \tfrac12 \delta^\top B\delta
+    \quad\text{s.t.}\quad \big\|(e_{k,p} - J_{k,p}\delta_k)/tol_p\big\| \le t,\quad
+    \text{box}(l - q, u - q) \cap [-\Delta, \Delta],\quad
+    |q_k + \delta_k - q_{k-1} - \delta_{k-1}| \le s
+
+(``B = ε ∇²ℓ̄_GN + μI``), a second-order cone program solved by Clarabel. The norm's kink at
+``e = 0`` and its curvature ``1/‖e‖`` are in the model exactly, so the model stays good where
+the errors are small (the linearised-norm model of :class:`EpigraphSQP` predicts ``t = 0`` one
+step away there and its steps are rejected until the trust radius is tiny). Steps are kept by
+the same ratio test on the true ``φ = max m + ε ℓ̄``, every trial projected onto the limits.
+
+**Convergence test** (stored): the step ``‖δ‖_∞`` [rad] and the KKT residual of the cone
+program at ``δ = 0, t = max m`` with its multipliers ``z``,
+``r = max(‖c + Aᵀz‖_∞, max_cones |⟨z_c, s_c⟩|)`` (stationarity and complementarity, ``s`` the
+slacks at that point). Those multipliers are the step's, so they certify ``δ = 0`` only when
+the step gains nothing either: it stops as converged when ``r ≤`` :data:`KKT_TOLERANCE` *and*
+the model's predicted decrease is ``≤`` :data:`KKT_TOLERANCE`, or ``‖δ‖_∞ ≤``
+:data:`STEP_TOLERANCE`; otherwise when the model predicts no decrease, at the iteration cap or
+the deadline.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import clarabel
+import numpy as np
+import scipy.sparse as sp
+
+from otmm_qp.reference.epigraph import (
+    ACCEPTED,
+    INITIAL_RADIUS,
+    KKT_TOLERANCE,
+    MAX_RADIUS,
+    MIN_RADIUS,
+    PROXIMAL,
+    QP_TOLERANCE,
+    STEP_TOLERANCE,
+    TIE_BREAK,
+    EpigraphOutcome,
+    EpigraphSQP,
+)
+from otmm_qp.reference.problem import BIG, TrackingProblem
+from otmm_qp.reference.projection import project_path
+from otmm_qp.reference.sqp import SolverFailure
+from otmm_qp.robots.robot import FloatArray
+
+
+def _settings() -> Any:
+    """Clarabel settings: quiet, :data:`QP_TOLERANCE`, at most 80 interior iterations."""
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_iter = 80
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = QP_TOLERANCE
+    return settings
+
+
+class ConicEpigraph:
+    """Epigraph min-max over one task's path with cone subproblems (module docstring).
+
+    Args:
+        problem: The task (``N ≥ 2`` samples); its tolerances set the parts as in
+            :class:`~otmm_qp.reference.epigraph.EpigraphSQP`.
+    """
+
+    def __init__(self, problem: TrackingProblem) -> None:
+        self.problem = problem
+        self._merit = EpigraphSQP(problem)  # parts, errors, merits and φ: one definition
+        self.parts = self._merit.parts
+        self.blocks = problem.samples - 1
+        nv = problem.nv
+        size = self.blocks * nv
+        self.size = size
+        # Box and rate rows: C δ with C = [I; D] (D: δ_j − δ_{j−1} per joint).
+        eye = sp.identity(size, format="csr")
+        diff = sp.identity(size, format="lil")
+        for j in range(nv, size):
+            diff[j, j - nv] = -1.0
+        self._linear = sp.vstack([eye, diff.tocsr()], format="csr")
+
+    def evaluate(self, path: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+        """Errors ``(N, n)``, merits per part ``(N−1, parts)`` and ``φ`` of a path."""
+        return self._merit.evaluate(path)
+
+    # ------------------------------------------------------------------ the cone program
+    def _linearise(self, path: FloatArray) -> tuple[list[Any], FloatArray, FloatArray]:
+        """Per block: its ``(error, jacobian)``; tie-break gradient ``(B·nv,)``, Hessian blocks."""
+        problem, robot = self.problem, self.problem.robot
+        nv, blocks, scale = problem.nv, self.blocks, problem.scale
+        local: list[Any] = []
+        tie = np.zeros((blocks, nv))
+        hessians = np.zeros((blocks, nv, nv))
+        for b in range(blocks):
+            x, jacobian = robot.kinematics(robot.configuration(path[b + 1]))
+            error = robot.task_error(problem.targets[b + 1], x)
+            scaled_j = scale[:, None] * jacobian
+            tie[b] = -(scaled_j.T @ (scale * error)) * (TIE_BREAK / blocks)
+            hessians[b] = (TIE_BREAK / blocks) * (scaled_j.T @ scaled_j) + PROXIMAL * np.eye(nv)
+            local.append((error, jacobian))
+        return local, tie.ravel(), hessians
+
+    def _cones(self, local: list[Any]) -> tuple[sp.csc_matrix, FloatArray, list[int]]:
+        """Rows ``A x + s = b``, ``s ∈ SOC`` of every ``(k, p)``: ``s = (t, (e − Jδ)/tol)``."""
+        nv, size = self.problem.nv, self.size
+        rows: list[np.ndarray] = []
+        cols: list[np.ndarray] = []
+        vals: list[np.ndarray] = []
+        rhs: list[float] = []
+        dims: list[int] = []
+        row = 0
+        for b, (error, jacobian) in enumerate(local):
+            for rows_p, tolerance in self.parts:
+                part_j = jacobian[rows_p] / tolerance  # (d, nv)
+                d = part_j.shape[0]
+                rows.append(np.array([row]))
+                cols.append(np.array([size]))
+                vals.append(np.array([-1.0]))
+                r, c = np.meshgrid(np.arange(d), np.arange(nv), indexing="ij")
+                rows.append((row + 1 + r).ravel())
+                cols.append((b * nv + c).ravel())
+                vals.append(part_j.ravel())
+                rhs.append(0.0)
+                rhs.extend((error[rows_p] / tolerance).tolist())
+                dims.append(d + 1)
+                row += d + 1
+        matrix = sp.csc_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(row, size + 1),
+        )
+        return matrix, np.asarray(rhs), dims
+
+    def _bounds(self, path: FloatArray, radius: float) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper ends of ``C δ`` (box ∩ trust radius, then the rate rows)."""
+        problem = self.problem
+        current = path[1:]
+        box_lo = np.minimum(np.maximum(problem.lower - current, -radius), 0.0)
+        box_hi = np.maximum(np.minimum(problem.upper - current, radius), 0.0)
+        moves = np.diff(path, axis=0)
+        step = np.minimum(problem.step, BIG)
+        return (
+            np.concatenate([box_lo.ravel(), np.minimum((-step - moves).ravel(), 0.0)]),
+            np.concatenate([box_hi.ravel(), np.maximum((step - moves).ravel(), 0.0)]),
+        )
+
+    def _solve(
+        self,
+        hessians: FloatArray,
+        cost: FloatArray,
+        cones: tuple[sp.csc_matrix, FloatArray, list[int]],
+        lower: FloatArray,
+        upper: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, sp.csc_matrix, FloatArray, list[Any]]:
+        """One cone program; ``(x, z, A, b, cone list)``.
+
+        Raises:
+            SolverFailure: Clarabel returned no finite solution or a failure status.
+        """
+        size = self.size
+        hessian = sp.block_diag(
+            [*(0.5 * (h + h.T) for h in hessians), sp.csc_matrix((1, 1))], format="csc"
+        )
+        hessian = sp.triu(hessian, format="csc")
+        cone_a, cone_b, dims = cones
+        up = upper < BIG / 2
+        down = lower > -BIG / 2
+        linear = sp.hstack([self._linear, sp.csc_matrix((2 * size, 1))], format="csr")
+        a = sp.vstack([cone_a, linear[up], -linear[down]], format="csc")
+        b = np.concatenate([cone_b, upper[up], -lower[down]])
+        count = int(np.count_nonzero(up) + np.count_nonzero(down))
+        kinds: list[Any] = [clarabel.SecondOrderConeT(d) for d in dims]
+        kinds.append(clarabel.NonnegativeConeT(count))
+        try:
+            solver = clarabel.DefaultSolver(hessian, cost, a, b, kinds, _settings())
+            solution = solver.solve()
+        except (ValueError, RuntimeError, TypeError) as error:
+            raise SolverFailure(f"Clarabel: {' '.join(str(error).split())}") from None
+        status = str(solution.status)
+        x = np.asarray(solution.x, dtype=float)
+        z = np.asarray(solution.z, dtype=float)
+        if x.size != size + 1 or not np.all(np.isfinite(x)) or not np.all(np.isfinite(z)):
+            raise SolverFailure(f"Clarabel returned no step ({status})")
+        if status not in ACCEPTED:
+            raise SolverFailure(f"Clarabel status {status}")
+        return x, z, a, b, [*dims, count]
+
+    @staticmethod
+    def _kkt(
+        cost: FloatArray,
+        a: sp.csc_matrix,
+        b: FloatArray,
+        z: FloatArray,
+        dims: list[int],
+        top: float,
+    ) -> float:
+        """KKT residual at ``δ = 0, t = top`` with the multipliers ``z`` (module docstring)."""
+        stationarity = float(np.max(np.abs(cost + a.T @ z)))
+        point = np.zeros(a.shape[1])
+        point[-1] = top
+        slack = b - a @ point
+        complementarity = 0.0
+        start = 0
+        for d in dims[:-1]:
+            part = slice(start, start + d)
+            complementarity = max(complementarity, abs(float(z[part] @ slack[part])))
+            start += d
+        linear = np.abs(z[start:] * slack[start:])
+        if linear.size:
+            complementarity = max(complementarity, float(np.max(linear)))
+        return max(stationarity, complementarity)
+
+    # ------------------------------------------------------------------ driver
+    def solve(self, path: FloatArray, iterations: int, deadline: float) -> EpigraphOutcome:
+        """Iterate from a feasible ``path`` (see the module docstring).
+
+        Raises:
+            SolverFailure: Clarabel failed on a subproblem.
+        """
+        problem = self.problem
+        current = path
+        _, merits, phi = self.evaluate(current)
+        top = float(np.max(merits))
+        best = EpigraphOutcome(current, top)
+        radius = INITIAL_RADIUS
+        linear = None
+        while best.iterations < iterations and time.perf_counter() < deadline:
+            if linear is None:
+                local, tie, hessians = self._linearise(current)
+                cones = self._cones(local)
+                linear = (tie, hessians, cones)
+            tie, hessians, cones = linear
+            cost = np.concatenate([tie, [1.0]])
+            lower, upper = self._bounds(current, radius)
+            x, z, a, b, dims = self._solve(hessians, cost, cones, lower, upper)
+            best.iterations += 1
+            delta = x[:-1].reshape(self.blocks, problem.nv)
+            quadratic = 0.5 * float(np.einsum("bi,bij,bj", delta, hessians, delta))
+            model = x[-1] + (phi - top) + float(tie @ x[:-1]) + quadratic
+            predicted = phi - model
+            longest = float(np.max(np.abs(delta)))
+            best.step = longest
+            best.kkt = self._kkt(cost, a, b, z, dims, top)
+            # the multipliers are the step's: they certify δ = 0 only when the model gains
+            # nothing from the step either
+            stationary = best.kkt <= KKT_TOLERANCE and predicted <= KKT_TOLERANCE
+            if stationary or longest <= STEP_TOLERANCE or predicted <= 0.0:
+                best.converged = stationary or longest <= STEP_TOLERANCE
+                break
+            trial = current.copy()
+            trial[1:] += delta
+            trial = project_path(trial, problem.lower, problem.upper, problem.step)
+            _, trial_merits, trial_phi = self.evaluate(trial)
+            ratio = (phi - trial_phi) / predicted
+            if ratio > 0.1 and trial_phi < phi:
+                current, merits, phi = trial, trial_merits, trial_phi
+                top = float(np.max(merits))
+                if top < best.merit:
+                    best.path, best.merit = current, top
+                if ratio > 0.75 and longest > 0.9 * radius:
+                    radius = min(2.0 * radius, MAX_RADIUS)
+                linear = None
+            else:
+                radius = 0.25 * min(radius, longest)
+                if radius < MIN_RADIUS:
+                    break
+        if not math.isfinite(best.merit):
+            raise SolverFailure("no finite merit")
+        return best

@@ -58,9 +58,14 @@ PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         {"horizon": 2.0, "knots": 8, "infeasible_policy": "hold"},
     ),
     (
-        "preview two-rate (H = 2 s, preview QP every 10 steps)",
+        "preview two-rate (H = 2 s, preview QP every 10 steps in slices)",
         "preview_two_rate",
         {"horizon": 2.0, "every": 10, "infeasible_policy": "hold"},
+    ),
+    (
+        "preview two-rate (H = 2 s, preview QP every 10 steps, whole)",
+        "preview_two_rate",
+        {"horizon": 2.0, "every": 10, "infeasible_policy": "hold", "sliced": False},
     ),
 )
 

@@ -671,6 +671,21 @@ def test_the_shipped_preview_study_is_valid() -> None:
     assert len(reduced.episodes) == 2 * 32 * (16 + 1)
 
 
+@pytest.mark.parametrize(("arm", "peak"), [("ur5", 0.003), ("panda", 0.04)])
+def test_the_per_arm_crossing_studies_judge_one_preview_row(arm: str, peak: float) -> None:
+    # >= 60 crossing tasks per arm needs 84 tasks (every joint path and about half of the
+    # near-singular passes cross); ONE preview row, so its criterion is against the field.
+    from otmm_qp.studies.spec import load_study, plan_study
+
+    path = Path(__file__).parent.parent / "configs" / "studies" / f"preview_crossings_{arm}.yaml"
+    plan = plan_study(load_study(path), path.name)
+    previews = [c for c in plan.controllers if c.name.startswith("preview")]
+    assert [c.name for c in previews] == ["preview-minmax"]
+    assert len(plan.controllers) == 9
+    assert len(plan.episodes) == 84 * (9 + 1)  # tasks x (rows + oracle)
+    assert f"peak: {peak}" in path.read_text(encoding="utf-8")
+
+
 @pytest.mark.parametrize("backend", ["preview", "preview_causal", "preview_two_rate"])
 def test_preview_backends_pass_conformance(backend: str) -> None:
     """The paper's E1–E3 (planar arms without speed limits, E2 starts singular) and the arms."""

@@ -30,3 +30,23 @@ def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -
         assert row in out
     if importlib.util.find_spec("pink") is not None:
         assert "pink (daqp)" in out and "skipped" not in out
+
+
+def test_bench_preview_cpu_prints_every_preview_row(capsys: pytest.CaptureFixture[str]) -> None:
+    from otmm_qp.bench.pipelines import PREVIEWS, REFERENCE
+
+    script = SCRIPT.with_name("bench_preview_cpu.py")
+    spec = importlib.util.spec_from_file_location("bench_preview_cpu", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_preview_cpu"] = module
+    spec.loader.exec_module(module)
+    assert module.main(["--steps", "6", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    for row in (REFERENCE, *(label for label, _, _ in PREVIEWS)):
+        assert f"| {row} |" in out
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "µs" not in line]
+    assert len(rows) == 1 + len(PREVIEWS)
+    for line in rows:
+        median, p99, worst = (float(cell) for cell in line.split("|")[2:5])
+        assert 0 < median <= p99 <= worst

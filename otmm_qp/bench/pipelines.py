@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -181,8 +181,12 @@ def _adapter_step(scenario: Scenario, spec: PipelineSpec) -> StepFunction:
     return run
 
 
-def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction], list[str]]:
+def build_steps(
+    scenario: Scenario, full: bool, only: Collection[str] | None = None
+) -> tuple[dict[str, StepFunction], list[str]]:
     """Step functions of the floor and of every pipeline that can be built, and notes.
+
+    ``only``: build just the pipelines with these labels (and the floor); None: all.
 
     The floor (:mod:`otmm_qp.bench.floor`) comes first, with a note saying what it calls. A
     pipeline is left out, with a note, when its peer library is not installed or its
@@ -192,6 +196,8 @@ def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction]
     steps: dict[str, StepFunction] = {FLOOR: floor}
     notes: list[str] = [f"{FLOOR}: {calls} on the same states, nothing else"]
     for spec in pipeline_specs(full):
+        if only is not None and spec.label not in only:
+            continue
         try:
             with quiet_logs():
                 if spec.peer:

@@ -615,9 +615,8 @@ def test_study_rows_record_their_information_class(
         "oracle": "offline",
     }
     # The README's verdict command on such a folder (its reduced run).
-    from otmm_qp.studies.group_verdict import main as verdict
-
-    assert verdict([str(out), "--ours", "preview", "--kinds"]) == 0
+    capsys.readouterr()
+    assert main(["study", "verdict", str(out), "--ours", "preview", "--kinds"]) == 0
     assert "`preview`" in capsys.readouterr().out
 
 

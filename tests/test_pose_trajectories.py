@@ -91,3 +91,23 @@ def test_bad_inputs() -> None:
     with pytest.raises(ConfigError) as error:
         PoseLineTrajectory(START, 1.0, end_rpy=[0, 0, 0], end_quaternion=[0, 0, 0, 1])
     assert str(error.value) == "end_rpy: give at most one of end_rpy and end_quaternion"
+
+
+@pytest.mark.parametrize("profile", ["quintic", "constant"])
+@pytest.mark.parametrize("end_rpy", [None, [0.3, -0.2, 1.0], [3.1, 0.0, 0.0]])
+def test_pose_line_window_is_its_samples(profile: str, end_rpy: list[float] | None) -> None:
+    # The preview window evaluated at once (Rodrigues about the fixed slerp axis) equals the
+    # pose sampled time by time, before the start, during the motion and after its end.
+    start = np.eye(4)
+    start[:3, 3] = [0.3, 0.1, 0.5]
+    trajectory = PoseLineTrajectory(
+        start,
+        2.0,
+        end=[0.5, 0.2, 0.4],
+        end_rpy=end_rpy,
+        profile=profile,  # type: ignore[arg-type]
+    )
+    times = np.linspace(-0.5, 3.0, 37)
+    window = np.array(trajectory.positions(times))
+    one_by_one = np.array([trajectory.position(t) for t in times])
+    np.testing.assert_allclose(window, one_by_one, rtol=0.0, atol=1e-12)

@@ -5,18 +5,25 @@ from __future__ import annotations
 import importlib.util
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 SCRIPT = Path(__file__).parent.parent / "benchmarks" / "bench_qp_session.py"
 
 
-def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -> None:
-    spec = importlib.util.spec_from_file_location("bench_qp_session", SCRIPT)
+def _script(path: Path) -> ModuleType:
+    """The benchmark script at ``path`` imported as a module."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_qp_session"] = module
+    sys.modules[path.stem] = module
     spec.loader.exec_module(module)
+    return module
+
+
+def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -> None:
+    module = _script(SCRIPT)
     assert module.main(["--steps", "4", "--rounds", "1"]) == 0
     out = capsys.readouterr().out
     for row in (
@@ -30,3 +37,18 @@ def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -
         assert row in out
     if importlib.util.find_spec("pink") is not None:
         assert "pink (daqp)" in out and "skipped" not in out
+
+
+def test_bench_preview_cpu_prints_every_preview_row(capsys: pytest.CaptureFixture[str]) -> None:
+    from otmm_qp.bench.pipelines import PREVIEWS, REFERENCE
+
+    module = _script(SCRIPT.with_name("bench_preview_cpu.py"))
+    assert module.main(["--steps", "6", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    for row in (REFERENCE, *(label for label, _, _ in PREVIEWS)):
+        assert f"| {row} |" in out
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "µs" not in line]
+    assert len(rows) == 1 + len(PREVIEWS)
+    for line in rows:
+        median, p99, worst = (float(cell) for cell in line.split("|")[2:5])
+        assert 0 < median <= p99 <= worst

@@ -100,20 +100,19 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
         "both groupings on the tiny study; the README's counts come from the "
         "full study (docs/strategies.md gives the command and timings)",
     ),
-    "otmm-qp study configs/studies/preview_crossings.yaml --out results/preview-crossings "
+    "otmm-qp study configs/studies/preview_crossings_ur5.yaml --out results/preview-crossings-ur5 "
     "--workers 1": (
         (
-            "tests/test_preview_backend.py::test_the_shipped_preview_study_is_valid",
+            "tests/test_preview_backend.py::test_the_per_arm_crossing_studies_judge_one_preview_row",
             "tests/test_preview_backend.py::test_study_rows_record_their_information_class",
         ),
-        "the shipped file is planned (every row dry-run on both arms) and a tiny planar study "
-        "with the preview rows runs in tmp_path; the README's numbers come from the full file "
-        "(1,088 episodes, ~13 min; docs/strategies.md)",
+        "the shipped file is planned (840 episodes: 84 tasks x (9 rows + the reference)) and a "
+        "tiny planar study with preview rows runs in tmp_path; the README's numbers come from "
+        "the full file (~9 min with --workers 1; docs/strategies.md)",
     ),
-    "python -m otmm_qp.studies.group_verdict results/preview-crossings "
-    '--ours "preview[horizon=1]" --kinds': (
+    "otmm-qp study verdict results/preview-crossings-ur5 --ours preview-minmax --kinds": (
         ("tests/test_preview_backend.py::test_study_rows_record_their_information_class",),
-        "its main() with --kinds on the tiny preview study",
+        "the verdict with --kinds on the tiny preview study",
     ),
     "otmm-qp study configs/studies/plants.yaml --out results/plants-study": (
         ("tests/test_plant_runs.py::test_shipped_plants_study_plans_and_runs_a_slice",),

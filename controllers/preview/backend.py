@@ -15,7 +15,7 @@ they know.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Generator, Sequence
 from numbers import Integral, Real
 from typing import ClassVar, Literal, NamedTuple
 
@@ -39,7 +39,10 @@ from .formulation import BoolArray, PreviewProblem, PreviewWeights
 from .knots import KnotGrid
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
 
-__all__ = ["CausalPreviewBackend", "PreviewBackend", "PreviewStep"]
+__all__ = ["KNOTS_PER_SLICE", "CausalPreviewBackend", "PreviewBackend", "PreviewStep", "run_slices"]
+
+#: Knots whose kinematics one slice of :meth:`PreviewBackend.plan_slices` computes.
+KNOTS_PER_SLICE = 8
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
 _WEIGHT = Interval(Real, 0, None, closed="left")
@@ -77,6 +80,10 @@ class PreviewBackend(BoxQpBackend):
         smoothness: ρ ≥ 0, weight of the plan's second differences.
         jump: ρ₀ ≥ 0, weight of the executed step's velocity change ``‖v_1 − q̇_prev‖²``.
         trust_region: κ ≥ 0, weight of the distance to the nominal knots.
+        peak: ω ≥ 0, weight of the plan's peak joint speed beyond the episode's executed peak
+            (an epigraph variable and ``2·K·nv`` rows; 0: none).
+        peak_jump: ω_a ≥ 0, weight of the plan's largest velocity change per step beyond the
+            episode's executed one (an epigraph variable and ``2·K·nv`` rows; 0: none).
         solver: ``daqp``, ``proxsuite``, ``osqp`` (persistent sessions, warm started) or
             another installed qpsolvers backend.
         limits: The project's limits (:mod:`otmm_qp.limits`): the first segment keeps their
@@ -106,6 +113,8 @@ class PreviewBackend(BoxQpBackend):
         "smoothness": _WEIGHT,
         "jump": _WEIGHT,
         "trust_region": _WEIGHT,
+        "peak": _WEIGHT,
+        "peak_jump": _WEIGHT,
         "solver": SOLVER,
         "limits": [LIMITS, None],
         "infeasible_policy": OneOf(*policies),
@@ -126,6 +135,8 @@ class PreviewBackend(BoxQpBackend):
         limits: Sequence[LimitSpec] | None = None,
         infeasible_policy: InfeasiblePolicy = "raise",
         fast_path: bool = True,
+        peak: float = 0.0,
+        peak_jump: float = 0.0,
     ) -> None:
         check_params(self, locals())
         super().__init__(solver, make_limits(limits), infeasible_policy)
@@ -135,8 +146,9 @@ class PreviewBackend(BoxQpBackend):
         self.fine_steps = int(fine_steps)
         self.coarse_step = None if coarse_step is None else float(coarse_step)
         self.weights = PreviewWeights(
-            float(regularization), float(smoothness), float(jump), float(trust_region)
-        )
+            float(regularization), float(smoothness), float(jump), float(trust_region),
+            float(peak), float(peak_jump),
+        )  # fmt: skip
         self._damping = float(np.sqrt(self.weights.regularization))
         self._targets: Targets | None = None
         self._trajectory: Trajectory | None = None
@@ -196,6 +208,8 @@ class PreviewBackend(BoxQpBackend):
         super().reset()
         self._k = 0
         self._active: tuple[BoolArray, BoolArray] | None = None
+        self._peak = 0.0
+        self._peak_jump = 0.0
         if hasattr(self, "_plan"):
             self._plan[:] = 0.0
 
@@ -208,39 +222,69 @@ class PreviewBackend(BoxQpBackend):
     ) -> BackendOutput:
         """``q̇ = v_1`` [rad/s], shape ``(nv,)``, within the step's box; details a PreviewStep.
 
-        The k-th call after :meth:`reset` is the step at ``t = k·dt`` (as the loop runs it).
+        The k-th call after :meth:`reset` is the step at ``t = k·dt`` (as the loop runs it):
+        :meth:`plan_slices` run to the end.
 
         Raises:
             ParameterError: No trajectory was attached to a ``preview`` backend.
             NonFiniteState: The desired path is NaN or inf inside the window.
             InfeasibleProblem: No solution under the ``raise`` policy.
         """
+        t = self._k * self.dt
+        self._k += 1
+        output = run_slices(self.plan_slices(state, xdot, qdot_prev, t))
+        self.executed(output.qdot, qdot_prev)
+        return output
+
+    def executed(self, qdot: FloatArray, qdot_prev: FloatArray) -> None:
+        """Keep the episode's peak speed and jump [rad/s] (the floors of the epigraph terms)."""
+        self._peak = max(self._peak, float(np.abs(qdot).max()))
+        self._peak_jump = max(self._peak_jump, float(np.abs(qdot - qdot_prev).max()))
+
+    def plan_slices(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray, t: float
+    ) -> Generator[None, None, BackendOutput]:
+        """One preview solve at time ``t`` [s] as slices of work, yielding between slices.
+
+        The slices: the box and the nominal; the knots' kinematics, :data:`KNOTS_PER_SLICE`
+        at a time; the targets; the QP's data; each fast-path candidate; the solver's update;
+        its solve and the new plan. A caller may run them across several control steps
+        (the two-rate scheme) or at once (:func:`run_slices`). ``state``, ``xdot`` and
+        ``qdot_prev`` must stay unchanged until the last slice. Returns the step's output
+        (``q̇ = v_1``); the plan is :attr:`_plan` from then on.
+
+        Raises:
+            As :meth:`solve`, from the slice that meets the condition.
+        """
         targets = self._targets
         if targets is None:
             raise ParameterError(
                 "horizon", "a preview backend needs the run's trajectory (Controller.bind)"
             )
-        t = self._k * self.dt
-        self._k += 1
         theta, empty = self.begin_step(state, qdot_prev)
-        plan = self._shift @ self._plan  # the nominal: the last plan advanced by one step
+        plan = self._shift @ self._plan  # the nominal: the last plan advanced
         taus = self.grid.taus
         if empty:
             detail = self.box.conflict(self.robot.joint_names)
             qdot, status = self.fallback(detail, (None, None), True, plan[0])
             self._plan = plan
             return self._output(qdot, status, None, None, plan, taus)
+        bounds = self.box.bounds
         nominal = np.cumsum(self.grid.steps[:, None] * plan, axis=0)  # d̄_i, (K, nv)
-        knots = self._linearise(state, theta, nominal)
-        targets.residuals(self.robot, state, xdot, t, knots, self._residuals)
+        for start in range(0, self.grid.count, KNOTS_PER_SLICE):
+            yield
+            knots = self._linearise(state, theta, nominal, start)
+            yield
+            targets.residuals(self.robot, state, xdot, t, knots, self._residuals, start)
+        yield
         room = self._theta_limits - theta
         problem = self._qp.build(
-            self._jacobians, self._residuals, nominal, qdot_prev, self.box.bounds,
-            self._speed, room,
+            self._jacobians, self._residuals, nominal, qdot_prev, bounds,
+            self._speed, room, self._peak, self._peak_jump,
         )  # fmt: skip
-        solution = self._solve(problem)
+        solution = yield from self._solve(problem)
         settled = None if solution.x is None else clip_into_box(
-            solution.x[: self.robot.nv], self.box.bounds, SOLVER_TOL
+            solution.x[: self.robot.nv], bounds, SOLVER_TOL
         )  # fmt: skip
         if settled is None or solution.x is None:
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"
@@ -249,13 +293,13 @@ class PreviewBackend(BoxQpBackend):
             return self._output(qdot, status, problem, solution, plan, taus)
         qdot, active = settled
         self._plan = plan  # same shape: the buffer takes the solution
-        np.copyto(plan, solution.x.reshape(plan.shape))
+        np.copyto(plan, solution.x[: plan.size].reshape(plan.shape))
         plan[0] = qdot
         status = Status.BOUNDED if active else Status.OK
         return self._output(qdot, status, problem, solution, self._plan, taus)
 
-    def _solve(self, problem: QpProblem) -> Solution:
-        """The fast paths, else the session.
+    def _solve(self, problem: QpProblem) -> Generator[None, None, Solution]:
+        """The fast paths, else the session; one slice per attempt.
 
         First the last step's active bounds advanced by one segment, as the plan is, then as
         they were (:meth:`PreviewProblem.with_active_bounds`, KKT conditions checked), then
@@ -267,32 +311,44 @@ class PreviewBackend(BoxQpBackend):
             guess = self._active
             if guess is not None and (guess[0].any() or guess[1].any()):
                 nv = self.robot.nv
-                for candidate in (tuple(_advanced(mask, nv) for mask in guess), guess):
+                plan = self._qp.grid.count * nv
+                for candidate in (tuple(_advanced(mask, nv, plan) for mask in guess), guess):
+                    yield
                     x = qp.with_active_bounds(*candidate)
                     if x is not None:
                         self._active = qp.active_bounds(x)
                         return Solution(x, True, "last active set optimal")
+            yield
             x = qp.unconstrained()
             if x is not None:
                 self._active = None
                 return Solution(x, True, "unconstrained minimiser feasible")
+        yield
         self.session.load(problem)
+        yield
         solution = self.session.solve()
         if solution.x is not None:
             self._active = qp.active_bounds(solution.x)
         return solution
 
     def _linearise(
-        self, state: KinematicState, theta: FloatArray, nominal: FloatArray
+        self,
+        state: KinematicState,
+        theta: FloatArray,
+        nominal: FloatArray,
+        start: int,
     ) -> list[FloatArray]:
-        r"""Write :math:`\bar J_i = W J(\bar\theta_i)` into ``_jacobians``; the knots' task values.
+        r"""Write :math:`\bar J_i = W J(\bar\theta_i)` of the next :data:`KNOTS_PER_SLICE` knots.
+
+        Knots ``i ∈ [start, start + KNOTS_PER_SLICE)``; returns their task values.
 
         A knot at the present state (``d̄_i = 0``, e.g. every knot on the first step) reuses
         the state's Jacobian: no kinematics call.
         """
         robot, weight = self.robot, state.weight
         knots: list[FloatArray] = []
-        for i, offset in enumerate(nominal):
+        for i in range(start, min(start + KNOTS_PER_SLICE, self.grid.count)):
+            offset = nominal[i]
             if not offset.any():
                 knots.append(state.x)
                 self._jacobians[i] = state.task_jacobian
@@ -315,10 +371,22 @@ class PreviewBackend(BoxQpBackend):
         return BackendOutput(qdot, status, self._damping, details=record)
 
 
-def _advanced(mask: BoolArray, nv: int) -> BoolArray:
-    """A per-variable mask of the plan ``(K·nv,)`` advanced by one segment (the last kept)."""
+def run_slices(job: Generator[None, None, BackendOutput]) -> BackendOutput:
+    """Run every slice of a :meth:`PreviewBackend.plan_slices` job; its output."""
+    while True:
+        try:
+            next(job)
+        except StopIteration as done:
+            return done.value
+
+
+def _advanced(mask: BoolArray, nv: int, plan: int) -> BoolArray:
+    """A per-variable mask advanced by one segment over the plan's ``plan = K·nv`` entries.
+
+    The last segment is kept; entries after the plan (the peak variable) stay as they are.
+    """
     moved = mask.copy()
-    moved[:-nv] = mask[nv:]
+    moved[: plan - nv] = mask[nv:plan]
     return moved
 
 

@@ -16,10 +16,13 @@ weighted Jacobians :math:`\bar J_i = W J(\bar\theta_i)` and residuals :math:`\ba
       + \tfrac12\rho\sum_{i=1}^{K}\frac{\tilde h_i}{H}\Big\|\frac{v_i - v_{i-1}}{\tilde h_i}
         \,dt\Big\|^2,\qquad \tilde h_i = \tfrac12(h_{i-1} + h_i),
         \ v_0 = \dot q_{prev},\ h_0 = dt \\
+      &+ \omega\,s + \tfrac12\epsilon s^2 \quad\text{(only when } \omega > 0\text{)} \\
     \text{s.t.}\ &lb \le v_1 \le ub \quad\text{(the step's box of the project's limits)},\\
       &-\dot q_{max} \le v_i \le \dot q_{max},\quad
       \theta_{min} - \theta_0 \le \delta_i \le \theta_{max} - \theta_0,\quad
       |v_i - v_{i-1}| \le a_{max}\tilde h_i \quad (i \ge 2)
+      \quad\text{and, when } \omega > 0:\quad |v_{i,j}| \le s\ (\text{every knot } i,
+      \text{joint } j),\quad s \ge \hat s
 
 The task term is the time average of the squared tracking error over the horizon, in units
 of one step's velocity (÷ dt²); κ is a trust region keeping the plan near the nominal where
@@ -27,6 +30,15 @@ the linearisation holds (it keeps the Hessian well conditioned where ``J̄ᵀJ̄
 as the offline reference's Levenberg–Marquardt term does); ρ weights the second differences
 of the knot positions (the plan's accelerations, the previous step's velocity ``v_0`` included,
 so consecutive plans agree) and ρ₀ adds weight on the one-step jump of the executed velocity.
+The peak-jump term (ω_a > 0) is the same for the plan's largest velocity change per step
+``a`` [rad/s] (the study's max ‖Δq̇‖∞): :math:`|v_1 - \dot q_{prev}| \le a`,
+:math:`|v_i - v_{i-1}|\,dt/\tilde h_i \le a`, cost :math:`\omega_a a`, ``a`` at least the
+largest change already executed. The peak term (ω > 0) is the epigraph of the plan's peak
+joint speed ``s`` [rad/s]
+(:math:`\max_{i,j}|v_{i,j}|`, the study's max ‖q̇‖∞): one more variable, ``2·K·nv`` rows, a
+linear cost; its floor :math:`\hat s` is the peak the episode has already executed, so speeds
+below it are free (the metric counts the peak once) and only a new peak is paid for. The tiny
+:math:`\epsilon` = :data:`PEAK_CURVATURE` keeps the Hessian positive definite.
 The task error is soft — its slack is the residual itself — and every limit hard.
 With ``K = 1`` (``H = dt``) and ρ = ρ₀ = κ = 0 the QP is the one-step QP
 :math:`\min \tfrac12\|J_w v - \bar r_1/dt\|^2 + \tfrac12\mu\|v\|^2` in the box.
@@ -52,7 +64,10 @@ from otmm_qp.robots.robot import FloatArray
 from ..qp.solvers import BIG, QpProblem
 from .knots import KnotGrid
 
-__all__ = ["BoolArray", "PreviewProblem", "PreviewWeights"]
+__all__ = ["PEAK_CURVATURE", "BoolArray", "PreviewProblem", "PreviewWeights"]
+
+#: ε of ``½ε s²`` on the peak variable [task units² / (rad/s)²] (keeps ``P`` definite).
+PEAK_CURVATURE = 1e-6
 
 #: A boolean mask, e.g. the variables held at a bound.
 BoolArray = NDArray[np.bool_]
@@ -68,6 +83,10 @@ class PreviewWeights:
             differences (its velocity changes per ``dt``).
         jump: ρ₀ ≥ 0 [task units² / (rad/s)²], the weight of ``‖v_1 − q̇_prev‖²``.
         trust_region: κ ≥ 0 [task units² / rad²], the weight of ``‖δ_i − d̄_i‖²``.
+        peak: ω ≥ 0 [task units² / (rad/s)], the weight of the plan's peak joint speed
+            ``s`` (0: no peak variable).
+        peak_jump: ω_a ≥ 0 [task units² / (rad/s)], the weight of the plan's largest velocity
+            change per step ``a`` (0: none).
 
     Raises:
         ParameterError: A weight out of range.
@@ -77,6 +96,8 @@ class PreviewWeights:
     smoothness: float = 0.001
     jump: float = 0.0
     trust_region: float = 1e-3
+    peak: float = 0.0
+    peak_jump: float = 0.0
 
     def __post_init__(self) -> None:
         """Validate the weights."""
@@ -85,6 +106,8 @@ class PreviewWeights:
             ("smoothness", self.smoothness, False),
             ("jump", self.jump, False),
             ("trust_region", self.trust_region, False),
+            ("peak", self.peak, False),
+            ("peak_jump", self.peak_jump, False),
         ):
             if not math.isfinite(value) or value < 0.0 or (positive and value == 0.0):
                 allowed = "> 0" if positive else ">= 0"
@@ -118,10 +141,19 @@ class PreviewProblem:
         h = grid.steps
         count, dt, horizon = grid.count, float(h[0]), grid.horizon
         self.grid, self.nv, self.weights = grid, nv, weights
-        size = count * nv
+        plan = count * nv
+        # Epigraph variables after the plan: the peak speed s, then the peak jump a.
+        self.peaked, self.jump_peaked = weights.peak > 0.0, weights.peak_jump > 0.0
+        self._peak_index = plan if self.peaked else -1
+        self._jump_index = plan + int(self.peaked) if self.jump_peaked else -1
+        size = plan + int(self.peaked) + int(self.jump_peaked)
         future = count - 1
         rows = (future * nv if position else 0) + (future * nv if acceleration is not None else 0)
-        self.problem = QpProblem.allocate(size, rows)
+        epigraph_rows = 2 * plan * (int(self.peaked) + int(self.jump_peaked))
+        self.problem = QpProblem.allocate(size, rows + epigraph_rows)
+        self._plan_size = plan
+        # The plan's block of P (a contiguous buffer when epigraph variables follow it).
+        self._task_hessian = np.empty((plan, plan)) if size > plan else self.problem.P
         self._task_weight = h / (horizon * dt * dt)  # (K,)
         self._hh = np.multiply.outer(h, h)[:, :, None, None]  # (K, K, 1, 1)
         self._index = np.maximum.outer(np.arange(count), np.arange(count))
@@ -149,6 +181,43 @@ class PreviewProblem:
             change = np.minimum(np.outer(mid, acceleration).reshape(-1), BIG)
             self.problem.u[self._acceleration_rows] = change
             self.problem.l[self._acceleration_rows] = -change
+        if size > plan:
+            self._epigraphs(rows, h, dt)
+
+    def _epigraphs(self, row: int, h: FloatArray, dt: float) -> None:
+        r"""The epigraph rows from ``row`` on, their variables' cost and bounds (constant).
+
+        Peak speed: :math:`\pm v_{ij} - s \le 0`. Peak jump, with :math:`c_1 = 1`,
+        :math:`c_i = dt/\tilde h_i`: :math:`\pm c_i(v_i - v_{i-1}) - a \le 0` (``i ≥ 2``)
+        and :math:`\pm v_1 - a \le \pm\dot q_{prev}` (its bounds written by :meth:`build`).
+        Each variable: cost ``ω z + ½ε z²``, ``z ≥`` its floor (:meth:`build`).
+        """
+        problem, plan, nv = self.problem, self._plan_size, self.nv
+        C, weights = problem.C, self.weights
+        identity = np.arange(plan)
+        problem.P[:] = 0.0
+        problem.l[row:] = -BIG
+        problem.u[row:] = 0.0
+        for index in (self._peak_index, self._jump_index):
+            if index < 0:
+                continue
+            problem.P[index, index] = PEAK_CURVATURE
+            problem.ub[index] = BIG
+            problem.lb[index] = 0.0
+        if self.peaked:
+            C[row + identity, identity] = 1.0
+            C[row + plan + identity, identity] = -1.0
+            C[row : row + 2 * plan, self._peak_index] = -1.0
+            problem.q[self._peak_index] = weights.peak
+            row += 2 * plan
+        if self.jump_peaked:
+            scale = np.repeat(np.concatenate([[1.0], dt / (0.5 * (h[:-1] + h[1:]))]), nv)
+            self._jump_rows = slice(row, row + 2 * plan)
+            for sign, start in ((1.0, row), (-1.0, row + plan)):
+                C[start + identity, identity] = sign * scale
+                C[start + identity[nv:], identity[:-nv]] = -sign * scale[nv:]
+            C[row : row + 2 * plan, self._jump_index] = -1.0
+            problem.q[self._jump_index] = weights.peak_jump
 
     def _constant_hessian(self, h: FloatArray, dt: float, horizon: float) -> FloatArray:
         """The regularisation and smoothness blocks, ``(K·nv, K·nv)`` (module docstring)."""
@@ -179,6 +248,8 @@ class PreviewProblem:
         first_box: FloatArray,
         speed: FloatArray,
         position_room: FloatArray,
+        peak_floor: float = 0.0,
+        jump_floor: float = 0.0,
     ) -> QpProblem:
         r"""Write this step's QP into :attr:`problem` and return it.
 
@@ -190,6 +261,9 @@ class PreviewProblem:
             first_box: ``[lb; ub]`` of ``v_1`` [rad/s], shape ``(2, nv)``.
             speed: ``q̇_max`` [rad/s] of the future segments, shape ``(nv,)`` (inf: none).
             position_room: ``[θ_min − θ₀; θ_max − θ₀]`` [rad], shape ``(2, nv)``.
+            peak_floor: ŝ [rad/s], the peak joint speed already executed (peak term only).
+            jump_floor: â [rad/s], the largest one-step velocity change already executed
+                (peak-jump term only).
         """
         problem, count, nv = self.problem, self.grid.count, self.nv
         h, c = self.grid.steps, self._task_weight
@@ -208,12 +282,22 @@ class PreviewProblem:
         blocks = self._blocks
         np.take(suffix, self._index, axis=0, out=blocks)
         blocks *= self._hh
-        np.copyto(problem.P.reshape(count, nv, count, nv), blocks.transpose(0, 2, 1, 3))
-        np.add(problem.P, self._constant, out=problem.P)
-        linear = problem.q.reshape(count, nv)
+        hessian, plan = self._task_hessian, self._plan_size
+        np.copyto(hessian.reshape(count, nv, count, nv), blocks.transpose(0, 2, 1, 3))
+        np.add(hessian, self._constant, out=hessian)
+        if problem.q.shape[0] > plan:
+            problem.P[:plan, :plan] = hessian
+        if self.peaked:
+            problem.lb[self._peak_index] = min(peak_floor, BIG)
+        if self.jump_peaked:
+            problem.lb[self._jump_index] = min(jump_floor, BIG)
+            first = self._jump_rows.start
+            np.copyto(problem.u[first : first + nv], qdot_prev)
+            np.negative(qdot_prev, out=problem.u[first + plan : first + plan + nv])
+        linear = problem.q[:plan].reshape(count, nv)
         np.multiply(pull_suffix, -h[:, None], out=linear)
         linear[0] -= self._first_jump * qdot_prev
-        lb, ub = problem.lb.reshape(count, nv), problem.ub.reshape(count, nv)
+        lb, ub = problem.lb[:plan].reshape(count, nv), problem.ub[:plan].reshape(count, nv)
         np.clip(first_box[0], -BIG, BIG, out=lb[0])
         np.clip(first_box[1], -BIG, BIG, out=ub[0])
         limit = np.minimum(speed, BIG)

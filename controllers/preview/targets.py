@@ -40,16 +40,20 @@ class Targets(abc.ABC):
         t: float,
         knots: list[FloatArray],
         out: FloatArray,
+        start: int = 0,
     ) -> FloatArray:
-        r"""Write :math:`\bar r_i` [weighted task units], shape ``(K, n)``, into ``out``.
+        r"""Write :math:`\bar r_i` [weighted task units] of the given knots into ``out``.
+
+        Rows ``start … start + len(knots) − 1`` of ``out`` (shape ``(K, n)``) are written.
 
         Args:
             robot: The arm (its task error).
             state: The step's state (``x_0``, the weight ``W``).
             xdot: The weighted command ``ẋ_w``, shape ``(n,)``.
             t: Present time [s].
-            knots: The task values :math:`x(\bar\theta_i)` of the nominal knots, ``K`` of them.
+            knots: The task values :math:`x(\bar\theta_i)` of those nominal knots.
             out: Array of shape ``(K, n)``.
+            start: Index ``i`` of the first of ``knots``.
 
         Raises:
             NonFiniteState: A target is NaN or inf.
@@ -76,12 +80,15 @@ class TrajectoryTargets(Targets):
         t: float,
         knots: list[FloatArray],
         out: FloatArray,
+        start: int = 0,
     ) -> FloatArray:
         r""":math:`\bar r_i = W\,e(x_d(t + \tau_i), x(\bar\theta_i))`."""
-        position, error, weight = self.trajectory.position, robot.task_error, state.weight
-        for i, (tau, x) in enumerate(zip(self.taus, knots, strict=True)):
-            np.multiply(weight, error(position(t + tau), x), out=out[i])
-        if not math.isfinite(float(out.sum())):
+        error, weight = robot.task_error, state.weight
+        stop = start + len(knots)
+        desired = self.trajectory.positions([t + tau for tau in self.taus[start:stop]])
+        for i, target, x in zip(range(start, stop), desired, knots, strict=True):
+            np.multiply(weight, error(target, x), out=out[i])
+        if not math.isfinite(float(out[start:stop].sum())):
             raise NonFiniteState(
                 "trajectory", f"x_d is NaN or inf within the preview window after t = {t:g} s"
             )
@@ -106,10 +113,12 @@ class HeldCommandTargets(Targets):
         t: float,
         knots: list[FloatArray],
         out: FloatArray,
+        start: int = 0,
     ) -> FloatArray:
         r""":math:`\bar r_i = \tau_i\dot x_w - W\,e(x(\bar\theta_i), x_0)`."""
-        np.multiply(self.taus[:, None], xdot, out=out)
+        stop = start + len(knots)
+        np.multiply(self.taus[start:stop, None], xdot, out=out[start:stop])
         error, weight, x0 = robot.task_error, state.weight, state.x
-        for i, x in enumerate(knots):
+        for i, x in enumerate(knots, start):
             out[i] -= weight * error(x, x0)
         return out

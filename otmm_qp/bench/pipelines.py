@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -58,9 +58,14 @@ PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         {"horizon": 2.0, "knots": 8, "infeasible_policy": "hold"},
     ),
     (
-        "preview two-rate (H = 2 s, preview QP every 10 steps)",
+        "preview two-rate (H = 2 s, preview QP every 10 steps in slices)",
         "preview_two_rate",
         {"horizon": 2.0, "every": 10, "infeasible_policy": "hold"},
+    ),
+    (
+        "preview two-rate (H = 2 s, preview QP every 10 steps, whole)",
+        "preview_two_rate",
+        {"horizon": 2.0, "every": 10, "infeasible_policy": "hold", "sliced": False},
     ),
 )
 
@@ -176,8 +181,12 @@ def _adapter_step(scenario: Scenario, spec: PipelineSpec) -> StepFunction:
     return run
 
 
-def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction], list[str]]:
+def build_steps(
+    scenario: Scenario, full: bool, only: Collection[str] | None = None
+) -> tuple[dict[str, StepFunction], list[str]]:
     """Step functions of the floor and of every pipeline that can be built, and notes.
+
+    ``only``: build just the pipelines with these labels (and the floor); None: all.
 
     The floor (:mod:`otmm_qp.bench.floor`) comes first, with a note saying what it calls. A
     pipeline is left out, with a note, when its peer library is not installed or its
@@ -187,6 +196,8 @@ def build_steps(scenario: Scenario, full: bool) -> tuple[dict[str, StepFunction]
     steps: dict[str, StepFunction] = {FLOOR: floor}
     notes: list[str] = [f"{FLOOR}: {calls} on the same states, nothing else"]
     for spec in pipeline_specs(full):
+        if only is not None and spec.label not in only:
+            continue
         try:
             with quiet_logs():
                 if spec.peer:

@@ -113,6 +113,22 @@ class _Orientation:
         """Rotation at path parameter ``s`` and world angular velocity for ``ṡ`` [1/s]."""
         return self.R0 @ exp_so3(s * self.body_rotation), ds * self.world_rotation
 
+    def rotations(self, s: FloatArray) -> FloatArray:
+        r"""Rotations at path parameters ``s``, shape ``(m, 3, 3)``, at once.
+
+        With :math:`\omega_b = \theta u` (``|u| = 1``) and :math:`K = [u]_\times`,
+        :math:`R_0\exp(s\theta K) = R_0 + \sin(s\theta)\,R_0K + (1 − \cos(s\theta))\,R_0K^2`
+        (Rodrigues about the fixed axis); ``θ < 1e-8``: ``R_0``.
+        """
+        angle = float(np.linalg.norm(self.body_rotation))
+        out = np.broadcast_to(self.R0, (s.shape[0], 3, 3)).copy()
+        if angle >= 1e-8:
+            K = _skew(self.body_rotation / angle)
+            first, second = self.R0 @ K, self.R0 @ K @ K
+            out += np.sin(s * angle)[:, None, None] * first
+            out += (1.0 - np.cos(s * angle))[:, None, None] * second
+        return out
+
 
 def _time_law(t: float, duration: float, profile: str) -> tuple[float, float]:
     """Path parameter ``s ∈ [0, 1]`` and ``ṡ`` [1/s]; held at the ends outside ``[0, T]``."""
@@ -198,6 +214,16 @@ class PoseLineTrajectory(Trajectory):
         pose[:3, :3], twist[3:] = self.orientation.at(s, ds)
         twist[:3] = ds * delta
         return pose, twist
+
+    def positions(self, times: Sequence[float]) -> list[FloatArray]:
+        """Poses ``(4, 4)`` at each of ``times`` [s], evaluated at once (:meth:`sample`'s law)."""
+        tau = np.clip(np.asarray(times, dtype=float) / self.duration, 0.0, 1.0)
+        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2) if self.profile == "quintic" else tau
+        poses = np.zeros((tau.shape[0], 4, 4))
+        poses[:, 3, 3] = 1.0
+        poses[:, :3, 3] = self.begin + s[:, None] * (self.end - self.begin)
+        poses[:, :3, :3] = self.orientation.rotations(s)
+        return list(poses)
 
 
 class PoseCircleTrajectory(Trajectory):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+from collections.abc import Sequence
 from typing import ClassVar
 
 from otmm_qp.robots.robot import FloatArray
@@ -48,3 +49,11 @@ class Trajectory(abc.ABC):
     def position(self, t: float) -> FloatArray:
         """Desired task value at ``t`` [s]."""
         return self.sample(t)[0]
+
+    def positions(self, times: Sequence[float]) -> list[FloatArray]:
+        """Desired task values at each of ``times`` [s] (a preview window's knots).
+
+        The default calls :meth:`position` per time; a motion with a closed form overrides it
+        to evaluate the window at once (equal to :meth:`position` up to rounding).
+        """
+        return [self.position(t) for t in times]

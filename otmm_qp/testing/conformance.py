@@ -222,7 +222,7 @@ def reference_error(scenario_name: str) -> tuple[float, str]:
         spec = ControllerSpec(name, REFERENCE_PARAMS.get(name, {}))
         try:
             record = run_scenario(scenario, spec)
-        except (ConfigError, PluginValidationError):
+        except (ConfigError, PluginValidationError, PeerUnavailable):  # e.g. oink not installed
             continue
         metrics = record.metrics
         if metrics["completed"] and not metrics["blow_up"]:

@@ -1,6 +1,6 @@
 """Two plants-study episodes whose joints left their limits under ``qp``'s ``predicted_position``
 because of the MuJoCo body, not the controller: each violates with the old body and keeps every
-limit with the new default (contacts off; the presets' 0.1 kg·m² armature).
+limit with the plants study's body (``contacts: false``; the presets' 0.1 kg·m² armature).
 
 * UR5, ``near_singular`` task 2 of ``configs/studies/plants.yaml``: its start is in
   self-collision (forearm against wrist 2 by ~1.7 cm); with contacts the first step kicks
@@ -70,9 +70,9 @@ def outside(result: RunResult) -> float:
 def test_a_start_in_self_collision_no_longer_throws_a_joint_past_its_limit() -> None:
     built = task("ur5", "near_singular", 2)
     body = {"type": "mujoco", "frequency": 10.0, "damping_ratio": 1.0, "timestep": 0.002}
-    colliding = run_qp(built, {**body, "contacts": True})
+    colliding = run_qp(built, body)  # contacts on: the default
     assert outside(colliding) > 0.01  # wrist 2 past its limit by more than 10 mrad
-    kept = run_qp(built, body)  # contacts off: the default
+    kept = run_qp(built, {**body, "contacts": False})
     assert outside(kept) <= 0.0
 
 

@@ -17,8 +17,9 @@ the joint's diagonal of the mass matrix at the start — a decoupled servo of ba
 the inertia the joint sees there. The mass matrix is the URDF links' plus ``armature``
 :math:`I_a` [kg·m²] on its diagonal (each drive's reflected rotor inertia; without it a URDF
 arm's ill-conditioned :math:`M` gives decentralised servos closed-loop modes several times
-faster than f, which chatter at the torque limits). No contact is simulated unless
-``contacts`` is true (the tasks, like the kinematic model, ignore self-collision).
+faster than f, which chatter at the torque limits). Contacts between the links (the peer
+model's collision geometry) are simulated unless ``contacts`` is false (the kinematic model and
+the task generators ignore self-collision; the presets and the plants study set it false).
 τ_max [N·m] is the URDF ``effort`` of each joint, applied
 as MuJoCo's joint ``actuatorfrcrange`` (the clip acts on the sum). The command is held over
 the control period ``dt``; MuJoCo steps ``ceil(dt / timestep)`` times at
@@ -90,7 +91,8 @@ class MujocoPlant(Plant):
             (MuJoCo's joint ``armature``: :math:`M(q) + \operatorname{diag}(I_a)`), ≥ 0, a scalar
             or one per joint; 0 (default): the URDF's link inertias alone.
         contacts: Whether the links collide with each other (the peer model's collision
-            geometry); False (default): no contact is simulated, as in the kinematic model.
+            geometry), True (default, as before the parameter existed); False: no contact is
+            simulated, as in the kinematic model.
 
     Raises:
         ParameterError: A parameter out of range (naming it).
@@ -123,7 +125,7 @@ class MujocoPlant(Plant):
         effort_limit: float | None = None,
         unstable_speed: float = 100.0,
         armature: float | Sequence[float] = 0.0,
-        contacts: bool = False,
+        contacts: bool = True,
     ) -> None:
         check_params(self, locals())
         self.frequency = float(frequency)
@@ -295,6 +297,6 @@ class MujocoPlant(Plant):
             parts.append("no-compensation")
         if np.any(np.asarray(self.armature, dtype=float) != 0.0):
             parts.append(f"armature={self.armature!r}".replace(" ", ""))
-        if self.contacts:
-            parts.append("contacts")
+        if not self.contacts:
+            parts.append("no-contacts")
         return f"mujoco({','.join(parts)})"

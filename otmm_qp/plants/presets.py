@@ -16,7 +16,8 @@ preset needs the arm's joint efforts (a URDF ``effort`` per joint).
 
 Every preset body gives each joint a reflected rotor inertia (``armature``) of 0.1 kg·m², the
 value of MuJoCo Menagerie's ``universal_robots_ur5e/ur5e.xml`` and
-``franka_emika_panda/panda.xml``; no contact is simulated (the MuJoCo plant's default).
+``franka_emika_panda/panda.xml``; no contact is simulated (``contacts: false``; the MuJoCo
+plant's own default simulates them).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ PRESET_KEY = "preset"
 ARMATURE = 0.1
 
 _UR_SERVO = {"type": "mujoco", "frequency": 300.0 / (2.0 * math.pi), "damping_ratio": 1.0,
-             "timestep": 0.002, "armature": ARMATURE}  # fmt: skip
+             "timestep": 0.002, "armature": ARMATURE, "contacts": False}  # fmt: skip
 
 #: Preset name → its stages (``{type, **params}``), in order.
 PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
@@ -48,6 +49,7 @@ PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
             "damping_ratio": 1.0,
             "timestep": 0.001,
             "armature": ARMATURE,
+            "contacts": False,
         },
     ),
     "ur_e_series": (

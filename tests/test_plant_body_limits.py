@@ -1,6 +1,6 @@
-"""Two plants-study episodes whose joints left their limits under ``qp``'s ``predicted_position``
-because of the MuJoCo body, not the controller: each violates with the old body and keeps every
-limit with the plants study's body (``contacts: false``; the presets' 0.1 kg·m² armature).
+"""Three plants-study episodes whose joints left their limits under ``qp``'s ``predicted_position``
+because of the plant model, not the controller: each violates with the old model and keeps every
+limit with the plants study's (``contacts: false``; the presets' 0.1 kg·m² armature).
 
 * UR5, ``near_singular`` task 2 of ``configs/studies/plants.yaml``: its start is in
   self-collision (forearm against wrist 2 by ~1.7 cm); with contacts the first step kicks
@@ -8,6 +8,10 @@ limit with the plants study's body (``contacts: false``; the presets' 0.1 kg·m�
 * Panda, ``beyond_reach`` task 1 under ``ur_e_series``: without armature the URDF mass matrix
   (condition number ~800) lets the decentralised servos chatter at the torque limits under a
   near-zero command (joint 5 at ±3–5 rad/s); with the armature they track.
+* Panda, ``beyond_reach`` task 1 under ``franka_fci``: without libfranka's rate limiter (the
+  preset before it) the 100 Hz servo falls behind accelerations the torques cannot give and
+  drags a joint past its limit; with it the limit holds (the interface, not the body: the
+  ``predicted_position`` limit models the limiter the plant declares).
 """
 
 from __future__ import annotations
@@ -85,4 +89,18 @@ def test_the_presets_armature_stops_the_servo_chatter_that_passed_a_limit() -> N
     assert outside(chattering) > 1e-3
     assert int(np.sum(chattering.saturated)) > 50  # torque-limited most of the run
     kept = run_qp(built, {"preset": "ur_e_series"})
+    assert outside(kept) <= 0.0
+
+
+def test_the_franka_rate_limiter_keeps_the_limit_the_torques_could_not() -> None:
+    """Panda ``beyond_reach`` task 1 under ``franka_fci``: without libfranka's rate limiter the
+    commanded accelerations outrun the 87/12 N·m and the servo drags a joint past its limit;
+    with it (and ``predicted_position`` modelling it, read from the plant) every limit holds."""
+    built = task("panda", "beyond_reach", 1)
+    preset = [dict(stage) for stage in PRESETS["franka_fci"]]
+    assert preset[0]["type"] == "rate_limit"
+    unlimited = run_qp(built, preset[1:])
+    assert outside(unlimited) > 1e-2
+    assert int(np.sum(unlimited.saturated)) > 50
+    kept = run_qp(built, {"preset": "franka_fci"})
     assert outside(kept) <= 0.0

@@ -20,15 +20,18 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.plants import DelayPlant, LagPlant, build_plant
 from otmm_qp.plants.mujoco_plant import MujocoPlant
 from otmm_qp.plants.presets import PRESETS
+from otmm_qp.plants.rate_limit import RateLimitPlant
 
 
 def test_presets_expand_to_their_documented_stages() -> None:
     franka = build_plant({"preset": "franka_fci"})
-    delay, body = franka.stages
+    rate, delay, body = franka.stages
+    assert isinstance(rate, RateLimitPlant) and rate.acceleration == 7.5  # libfranka's joint 2
     assert isinstance(delay, DelayPlant) and delay.steps == 1
     assert isinstance(body, MujocoPlant) and body.frequency == 100.0 and body.timestep == 0.001
     declared = franka.declares(0.02)
     assert declared.delay == 1 and declared.servo_frequency == 100.0
+    assert declared.acceleration == (7.5,)
     for name, steps in (("ur_e_series", 1), ("ur_cb3", 2)):
         delay, lag, body = build_plant({"preset": name}).stages
         assert isinstance(delay, DelayPlant) and delay.steps == steps
@@ -94,6 +97,16 @@ def _run(tmp_path: Path, capsys: pytest.CaptureFixture[str], **edits: Any) -> tu
         ({"limits": [{"type": "predicted_position", "deceleration": 0.0}]}, "deceleration"),
         ({"plant": {"preset": "kuka_lbr"}}, "plant.preset: unknown preset 'kuka_lbr'"),
         ({"plant": {"preset": "franka_fci"}}, "needs a positive URDF effort"),
+        ({"plant": {"type": "rate_limit", "acceleration": 0.0}}, "plant.acceleration"),
+        ({"plant": {"type": "rate_limit", "acceleration": -1.0}}, "plant.acceleration"),
+        ({"plant": {"type": "rate_limit", "acceleration": float("nan")}}, "plant.acceleration"),
+        ({"plant": {"type": "rate_limit"}}, "acceleration"),
+        ({"plant": {"type": "rate_limit", "acceleration": [1.0, 2.0, 3.0]}}, "acceleration"),
+        (
+            {"plant": [{"type": "lag", "tau": 0.01}, {"type": "rate_limit", "acceleration": 5}]},
+            "list the rate limiter before every lag",
+        ),
+        ({"limits": [{"type": "predicted_position", "rate_limit": 0.0}]}, "rate_limit"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_before_compute(

@@ -19,6 +19,17 @@ travel after a zero command) and shrinks the limits by a margin:
 * braking distance (``deceleration`` :math:`a_{dec}` [rad/s²]): a joint can stop before the
   limit decelerating at :math:`a_{dec}`,
   :math:`-\sqrt{2a_{dec}\max(d^-,0)} \le \dot q \le \sqrt{2a_{dec}\max(d^+,0)}`;
+* the command path's rate limit (``rate_limit`` :math:`a` [rad/s²], by default what the
+  plant declares, :mod:`otmm_qp.plants.rate_limit`): the limiter
+  :math:`v_k = v_{k-1} + \mathrm{clip}(\dot q_k - v_{k-1}, \pm a\,dt)` is run on the commands
+  sent, so :math:`\hat R` integrates what the arm is actually sent, and the command is bounded
+  so that the limiter can still stop in time — after :math:`v_k` it travels at most
+  :math:`v_k\,dt + v_k^2/(2a)` (the limiter decelerates at :math:`a`; the sum of its steps is
+  below the integral), hence
+  :math:`\dot q \le -a\,dt + \sqrt{(a\,dt)^2 + 2a\max(d^+,0)}` (and likewise below). The bound
+  is monotone in :math:`v_k` and :math:`v_k` in :math:`\dot q`, and braking at :math:`a` from
+  a feasible :math:`v_{k-1}` stays feasible, so it never asks the limiter for more than
+  :math:`a`: :math:`\hat R` — and the servo reference it is — never passes the shrunk limit;
 * Drake's ramp (``ramp_start`` :math:`d_1` > ``ramp_stop`` :math:`d_0` [rad]): the speed
   towards a limit falls linearly from :math:`\dot q_{max}` at :math:`d_1` to 0 at :math:`d_0`,
   :math:`\dot q \le \dot q_{max}\,\mathrm{clip}((d^+ - d_0)/(d_1 - d_0), 0, 1)` (and likewise
@@ -43,6 +54,7 @@ from otmm_qp.limits.command_prediction import CommandPrediction
 from otmm_qp.limits.limit import Box, per_joint
 from otmm_qp.limits.position_limit import PositionLimit
 from otmm_qp.plants.declaration import PlantDeclaration
+from otmm_qp.plants.rate_limit import rate_limit_step
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import ArrayOf, Constraints, Interval, OneOf, check_params
 
@@ -77,6 +89,9 @@ class PredictedPositionLimit(PositionLimit):
         noise_bound: k ≥ 0 [-]: the margin counts k σ of noise.
         deceleration: :math:`a_{dec}` > 0 [rad/s²] (inf: that joint unbounded), a scalar or one
             per joint, or None: no braking bound.
+        rate_limit: The command path's rate limit :math:`a` > 0 [rad/s²] (inf: that joint
+            unlimited), a scalar or one per joint; ``plant`` (default): what the plant declares
+            (none for a plant without a rate limiter); None: not modelled.
         ramp_start: :math:`d_1` > 0 [rad] where the ramp starts, or None: no ramp.
         ramp_stop: :math:`d_0 \ge 0` [rad] where the ramp reaches 0, below ``ramp_start``.
 
@@ -108,6 +123,15 @@ class PredictedPositionLimit(PositionLimit):
             None,
         ],
         "ramp_start": [Interval(Real, 0, None, closed="neither", unit="rad"), None],
+        "rate_limit": [
+            ArrayOf(
+                Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
+                scalar=True,
+                per="joint",
+            ),
+            _PLANT,
+            None,
+        ],
         "ramp_stop": _non_negative("rad"),
     }
 
@@ -125,6 +149,7 @@ class PredictedPositionLimit(PositionLimit):
         deceleration: float | Sequence[float] | None = None,
         ramp_start: float | None = None,
         ramp_stop: float = 0.0025,
+        rate_limit: float | Sequence[float] | str | None = FROM_PLANT,
     ) -> None:
         check_params(self, locals())
         if ramp_start is not None and not ramp_stop < ramp_start:
@@ -141,6 +166,7 @@ class PredictedPositionLimit(PositionLimit):
         self.deceleration = deceleration
         self.ramp_start = None if ramp_start is None else float(ramp_start)
         self.ramp_stop = float(ramp_stop)
+        self.rate_limit = rate_limit
         self.declared = PlantDeclaration()
 
     def declare_plant(self, declaration: PlantDeclaration) -> None:
@@ -158,6 +184,15 @@ class PredictedPositionLimit(PositionLimit):
         if self.reference == FROM_PLANT:
             return bool(np.isfinite(self.servo()))
         return self.reference == "command"
+
+    def rate(self) -> float | Sequence[float] | None:
+        """The rate limit :math:`a` [rad/s²] in force (None: none)."""
+        if isinstance(self.rate_limit, str):  # FROM_PLANT
+            declared = self.declared.acceleration
+            if not declared:
+                return None
+            return declared[0] if len(declared) == 1 else declared
+        return self.rate_limit
 
     def model(self) -> tuple[CommandPrediction, float]:
         """The prediction model and the total margin :math:`m` [rad] in force."""
@@ -209,6 +244,18 @@ class PredictedPositionLimit(PositionLimit):
         self._distance: FloatArray = np.empty((2, nv))
         decel = per_joint(self.deceleration, "deceleration", nv)
         self._twice_decel = None if decel is None else 2.0 * decel
+        rate = per_joint(self.rate(), "rate_limit", nv)
+        #: The rate limiter's :math:`a\,dt` [rad/s] per joint (None: no rate limit).
+        self._rate_step: FloatArray | None = None
+        if rate is not None:
+            finite = np.isfinite(rate)
+            self._rate_step = np.where(finite, rate * dt, np.inf)
+            self._rate_s = np.where(finite, rate * dt, 0.0)
+            self._rate_s2 = self._rate_s**2
+            self._rate_2a = np.where(finite, 2.0 * rate, 0.0)
+            self._rate_free = np.where(finite, 0.0, np.inf)
+            self._limited: FloatArray = np.zeros(nv)
+            self._rate_bound: FloatArray = np.empty(nv)
         self._ramp_speed: FloatArray | None = None
         if self.ramp_start is not None:
             speed = np.array(robot.velocity_limits, dtype=float)
@@ -221,14 +268,19 @@ class PredictedPositionLimit(PositionLimit):
         """Nothing in flight (a new run)."""
         if hasattr(self, "prediction"):
             self.prediction.reset()
+            if self._rate_step is not None:
+                self._limited.fill(0.0)
         self._started = False
 
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:
         """The box of the module docstring [rad/s] into ``out``.
 
-        ``qdot_prev`` is the last command sent: it enters the prediction.
+        ``qdot_prev`` is the last command sent: it enters the prediction (through the rate
+        limiter's model when there is one).
         """
         rest = theta
+        if self._rate_step is not None and (self._started or not self._integrate):
+            qdot_prev = rate_limit_step(qdot_prev, self._limited, self._rate_step, self._limited)
         if self._integrate:
             rest = self._rest
             if self._started:
@@ -240,7 +292,7 @@ class PredictedPositionLimit(PositionLimit):
         elif self.prediction.active:
             rest = np.add(theta, self.prediction.advance(qdot_prev), out=self._rest)
         super().compute_box(rest, qdot_prev, out)
-        if self._twice_decel is None and self._ramp_speed is None:
+        if self._twice_decel is None and self._ramp_speed is None and self._rate_step is None:
             return out  # the position box alone (the distances below feed only these two)
         distance = self._distance  # [θ_min + m − R̂; θ_max − m − R̂]
         np.subtract(self._theta_min, rest, out=distance[0])
@@ -256,10 +308,31 @@ class PredictedPositionLimit(PositionLimit):
             np.sqrt(extra, out=extra)
             np.negative(extra, out=extra)
             np.maximum(out.lower, extra, out=out.lower)
+        if self._rate_step is not None:
+            np.minimum(out.upper, self._stoppable(distance[1]), out=out.upper)
+            np.negative(distance[0], out=extra)
+            bound = self._stoppable(extra)
+            np.negative(bound, out=bound)
+            np.maximum(out.lower, bound, out=out.lower)
         if self._ramp_speed is not None:
             self._ramp(distance[1], out.upper, np.minimum, 1.0)
             self._ramp(distance[0], out.lower, np.maximum, -1.0)
         return out
+
+    def _stoppable(self, distance: FloatArray) -> FloatArray:
+        r"""The fastest command the limiter can still stop within ``distance`` [rad] (nv,).
+
+        :math:`-a\,dt + \sqrt{(a\,dt)^2 + 2a\max(D, 0)}` [rad/s] (inf for a joint without a
+        rate limit), into a scratch array valid until the next call.
+        """
+        bound = self._rate_bound
+        np.maximum(distance, 0.0, out=bound)
+        bound *= self._rate_2a
+        bound += self._rate_s2
+        np.sqrt(bound, out=bound)
+        bound -= self._rate_s
+        bound += self._rate_free
+        return bound
 
     def _ramp(self, distance: FloatArray, bound: FloatArray, keep: np.ufunc, sign: float) -> None:
         """``bound ← keep(bound, sign·q̇_max·clip((sign·distance − d0)/(d1 − d0), 0, 1))``."""

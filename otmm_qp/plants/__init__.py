@@ -5,6 +5,7 @@ from otmm_qp.plants.delay import DelayPlant
 from otmm_qp.plants.ideal import IdealPlant
 from otmm_qp.plants.lag import LagPlant
 from otmm_qp.plants.plant import Plant, PlantStep
+from otmm_qp.plants.rate_limit import RateLimitPlant
 from otmm_qp.plants.sensor import SensorPlant
 
 __all__ = [
@@ -14,6 +15,7 @@ __all__ = [
     "Plant",
     "PlantChain",
     "PlantStep",
+    "RateLimitPlant",
     "SensorPlant",
     "build_plant",
     "plant_label",

@@ -33,7 +33,8 @@ class PlantChain:
         stages: Stages in order; at most one body (the ideal body is added when none is).
 
     Raises:
-        ConfigError: More than one body (naming both).
+        ConfigError: More than one body (naming both); a rate limiter after a lag, or rate
+            limits of different joint counts (:mod:`otmm_qp.plants.declaration`).
     """
 
     def __init__(self, stages: Sequence[Plant] = ()) -> None:
@@ -44,6 +45,7 @@ class PlantChain:
                 "at most one body (ideal, mujoco) per plant, got "
                 + ", ".join(b.name for b in bodies),
             )
+        _check_rate_limits(stages)
         self.stages: tuple[Plant, ...] = tuple(stages) if bodies else (*stages, IdealPlant())
         self.body: Plant = bodies[0] if bodies else self.stages[-1]
         self._commands = tuple(s for s in self.stages if not s.body)
@@ -83,6 +85,27 @@ class PlantChain:
         if self.ideal:
             return "ideal"
         return "+".join(s.label() for s in self.stages if not isinstance(s, IdealPlant))
+
+
+def _check_rate_limits(stages: Sequence[Plant]) -> None:
+    """Refuse what the declared command path cannot model: a rate limiter after a lag.
+
+    Raises:
+        ConfigError: Naming the two stages, or the rate limits that do not combine.
+    """
+    parts = [stage.declares(1.0) for stage in stages]
+    lag = next((i for i, part in enumerate(parts) if part.lags), None)
+    for i, part in enumerate(parts):
+        if part.acceleration and lag is not None and lag < i:
+            raise ConfigError(
+                "plant",
+                f"stage {i} ({stages[i].name}) limits the command's rate after the lag of stage "
+                f"{lag} ({stages[lag].name}); list the rate limiter before every lag",
+            )
+    try:
+        combine(parts)
+    except ValueError as error:
+        raise ConfigError("plant", str(error)) from None
 
 
 def _specs(spec: Any) -> list[Mapping[str, Any]]:

@@ -6,8 +6,10 @@ in control periods). Every number's source is in ``docs/plants.md``; each body i
 preset needs the arm's joint efforts (a URDF ``effort`` per joint).
 
 ==============  ===================================================================
-``franka_fci``  latency 1 period; MuJoCo servos at 100 Hz (libfranka's default low-pass
-                cutoff, τ = 1/(2π·100 Hz) ≈ 1.6 ms), 1 ms MuJoCo step
+``franka_fci``  libfranka's rate limiter at 7.5 rad/s² (the smallest of its per-joint
+                limits, for every joint); latency 1 period; MuJoCo servos at 100 Hz
+                (libfranka's default low-pass cutoff, τ = 1/(2π·100 Hz) ≈ 1.6 ms), 1 ms
+                MuJoCo step
 ``ur_e_series`` latency 1 period; servoj look-ahead smoothing as a lag τ = 0.03 s (its
                 smallest look-ahead); MuJoCo servos at 300/(2π) ≈ 47.7 Hz (servoj's default
                 gain 300 as ω [1/s]), 2 ms step
@@ -28,10 +30,14 @@ from typing import Any
 
 from otmm_qp.exceptions import ConfigError
 
-__all__ = ["ARMATURE", "PRESETS", "PRESET_KEY", "expand_preset"]
+__all__ = ["ARMATURE", "FRANKA_ACCELERATION", "PRESETS", "PRESET_KEY", "expand_preset"]
 
 #: The key of a preset entry.
 PRESET_KEY = "preset"
+
+#: libfranka's rate limit [rad/s²]: the smallest of its per-joint ``kMaxJointAcceleration``
+#: (15, 7.5, 10, 12.5, 15, 20, 20; joint 2's), for every joint so the preset runs on any arm.
+FRANKA_ACCELERATION = 7.5
 
 #: Reflected rotor inertia of every joint [kg·m²]: MuJoCo Menagerie's UR5e and Panda models.
 ARMATURE = 0.1
@@ -42,6 +48,7 @@ _UR_SERVO = {"type": "mujoco", "frequency": 300.0 / (2.0 * math.pi), "damping_ra
 #: Preset name → its stages (``{type, **params}``), in order.
 PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
     "franka_fci": (
+        {"type": "rate_limit", "acceleration": FRANKA_ACCELERATION},
         {"type": "delay", "steps": 1},
         {
             "type": "mujoco",

@@ -12,7 +12,7 @@ import pytest
 from otmm_qp import registry
 from otmm_qp.config.load import parse_config
 from otmm_qp.controller import Controller
-from otmm_qp.exceptions import ConfigError, PeerUnavailable, RobotLoadError
+from otmm_qp.exceptions import ConfigError, ParameterError, PeerUnavailable, RobotLoadError
 from otmm_qp.output.report import read_summary
 from otmm_qp.output.run_writer import ResultsWriter
 from otmm_qp.robots import peer_models as models
@@ -314,3 +314,18 @@ def test_peers_take_qps_limit_objects(peer: str) -> None:
         match=rf"^{peer}\.limits: {peer} has no counterpart of limit .acceleration.; allowed",
     ):
         registry.create(registry.BACKENDS, peer, refused, peer)
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("delay", 1), ("tau", 0.01), ("deceleration", 5.0), ("ramp_start", 0.1), ("rate_limit", 7.5)],
+)
+def test_a_peer_refuses_the_predicted_position_parts_it_cannot_model(
+    key: str, value: float
+) -> None:
+    """No peer models the commands in flight: an explicit model parameter is one line."""
+    from otmm_qp_controllers.peers.peer_backend import peer_limit_set
+
+    with pytest.raises(ParameterError, match=rf"^limits\.{key}: pink has no counterpart"):
+        peer_limit_set([{"type": "predicted_position", key: value}], "pink")
+    peer_limit_set([{"type": "predicted_position", "rate_limit": "plant"}], "pink")

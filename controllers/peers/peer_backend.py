@@ -97,8 +97,8 @@ class PeerLimits(NamedTuple):
 PEER_LIMITS = (VelocityLimit, PositionLimit, PredictedPositionLimit)
 
 #: ``predicted_position`` parameters no peer can express: the peers bound the step around the
-#: configuration they see, with no model of the commands in flight, braking or ramp.
-UNMAPPED = ("delay", "tau", "deceleration", "ramp_start")
+#: configuration they see, with no model of the commands in flight, braking, ramp or rate limit.
+UNMAPPED = ("delay", "tau", "deceleration", "ramp_start", "rate_limit")
 
 _NON_NEGATIVE = Interval(Real, 0, None, closed="left")
 #: The declared constraint of the peers' ``limits``.

@@ -239,7 +239,7 @@ class ArrayOf(Constraint):
 
     def is_satisfied_by(self, value: object) -> bool:
         """A scalar (if allowed) or a 1-D non-empty sequence whose entries all satisfy."""
-        if _finite_number(value) or isinstance(value, bool | np.bool_):
+        if isinstance(value, Real | np.number | np.bool_):  # NaN and ±inf too: the element judges
             return self.scalar and self.element.is_satisfied_by(value)
         if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence | np.ndarray):
             return False

@@ -20,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from otmm_qp.exceptions import ConfigError, DimensionError
+from otmm_qp.exceptions import ConfigError, DimensionError, ParameterError
 from otmm_qp.limits import Box, PredictedPositionLimit
 from otmm_qp.plants import DelayPlant, LagPlant, PlantChain
 from otmm_qp.plants.declaration import PlantDeclaration, combine
@@ -156,3 +156,15 @@ def test_without_the_limiter_model_the_box_passes_the_limit() -> None:
     modelled = _drive(arm, [RateLimitPlant(2.0)], seen, np.zeros(1), picks)
     assert _excess(arm, modelled) <= 1e-9
     assert modelled[-1, 0] > 0.99  # it still reaches the limit
+
+
+def test_an_unlimited_scalar_is_accepted_where_its_message_says_so() -> None:
+    """``inf`` ("unlimited") as one number, not only inside a per-joint list; NaN and −inf not."""
+    arm = PlanarArm([1.0, 1.0])
+    stage = RateLimitPlant(math.inf)
+    stage.reset(arm, np.zeros(2), DT)
+    np.testing.assert_array_equal(stage.command(np.array([3.0, -2.0])), [3.0, -2.0])
+    PredictedPositionLimit(deceleration=math.inf, rate_limit=math.inf)
+    for bad in (math.nan, -math.inf):
+        with pytest.raises(ParameterError, match="acceleration"):
+            RateLimitPlant(bad)

@@ -164,3 +164,33 @@ def test_armature_adds_to_each_joints_inertia_and_is_checked_per_joint() -> None
     with pytest.raises(ConfigError) as info:
         check_plant({"type": "mujoco", "armature": [0.1, 0.1]}, prep.robot, prep.q0, prep.dt, "p")
     assert "armature" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_the_command_low_pass_filters_every_step_and_keeps_the_rest_point() -> None:
+    """``command_cutoff``: libfranka's first-order filter at the MuJoCo rate. The reference it
+    integrates ends where the raw commands' integral does (unit DC gain); the velocity servo
+    no longer sees a command's step whole; bad cutoffs are one line."""
+    prep = panda()
+    nv = prep.robot.nv
+    for cutoff, timestep in ((100.0, 0.001), (5.0, 0.002)):
+        plant = build_plant({"type": "mujoco", "command_cutoff": cutoff, "timestep": timestep})
+        body = plant.body
+        plant.reset(prep.robot, prep.q0, prep.dt)
+        start = body._reference.copy()
+        command = np.linspace(-0.3, 0.3, nv)
+        q = prep.q0
+        q = plant.advance(q, command).q
+        h = prep.dt / body.substeps
+        beta = 2 * np.pi * cutoff * h / (2 * np.pi * cutoff * h + 1)
+        expected = command * (1 - (1 - beta) ** body.substeps)  # the filter after one period
+        np.testing.assert_allclose(body._filtered, expected, rtol=1e-12)
+        for _ in range(200):  # zero commands: the filter drains, the reference comes to rest
+            q = plant.advance(q, np.zeros(nv)).q
+        np.testing.assert_allclose(body._reference - start, command * prep.dt, rtol=1e-6)
+    declared = build_plant({"type": "mujoco", "command_cutoff": 100.0}).declares(prep.dt)
+    assert declared.lags == (pytest.approx(1 / (2 * np.pi * 100.0)),)
+    assert "cutoff=100" in build_plant({"type": "mujoco", "command_cutoff": 100.0}).label()
+    for bad in (0.0, -5.0, float("nan"), "fast"):
+        with pytest.raises(ConfigError) as info:
+            build_plant({"type": "mujoco", "command_cutoff": bad})
+        assert "command_cutoff" in str(info.value) and "\n" not in str(info.value)

@@ -29,9 +29,15 @@ def test_presets_expand_to_their_documented_stages() -> None:
     assert isinstance(rate, RateLimitPlant) and rate.acceleration == 7.5  # libfranka's joint 2
     assert isinstance(delay, DelayPlant) and delay.steps == 1
     assert isinstance(body, MujocoPlant) and body.frequency == 100.0 and body.timestep == 0.001
+    assert body.command_cutoff == 100.0  # libfranka's low-pass, at the MuJoCo rate
     declared = franka.declares(0.02)
     assert declared.delay == 1 and declared.servo_frequency == 100.0
     assert declared.acceleration == (7.5,)
+    # the body acts after every command stage wherever it is listed: its filter is not a lag
+    # "before" a rate limiter listed after it
+    build_plant(
+        [{"type": "mujoco", "command_cutoff": 100.0}, {"type": "rate_limit", "acceleration": 5}]
+    )
     for name, steps in (("ur_e_series", 1), ("ur_cb3", 2)):
         delay, lag, body = build_plant({"preset": name}).stages
         assert isinstance(delay, DelayPlant) and delay.steps == steps

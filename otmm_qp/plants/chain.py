@@ -94,7 +94,8 @@ def _check_rate_limits(stages: Sequence[Plant]) -> None:
         ConfigError: Naming the two stages, or the rate limits that do not combine.
     """
     parts = [stage.declares(1.0) for stage in stages]
-    lag = next((i for i, part in enumerate(parts) if part.lags), None)
+    # the body acts after every command stage, wherever it is listed
+    lag = next((i for i, part in enumerate(parts) if part.lags and not stages[i].body), None)
     for i, part in enumerate(parts):
         if part.acceleration and lag is not None and lag < i:
             raise ConfigError(

@@ -14,7 +14,11 @@ the same actuators:
 with :math:`K_{p,i} = \omega^2 M_{ii}(q_0)`, :math:`K_{d,i} = 2\zeta\omega M_{ii}(q_0)`,
 :math:`\omega = 2\pi f` (``frequency`` f [Hz], ``damping_ratio`` ζ) and :math:`M_{ii}(q_0)`
 the joint's diagonal of the mass matrix at the start — a decoupled servo of bandwidth f on
-the inertia the joint sees there. The mass matrix is the URDF links' plus ``armature``
+the inertia the joint sees there. With ``command_cutoff`` :math:`f_c` [Hz] the command in both
+terms is first low-passed every MuJoCo step (libfranka's command filter, see the argument): the
+reference integrates the filtered command, whose unit DC gain leaves where it comes to rest
+unchanged, and a command's step no longer reaches the velocity servo whole. The mass matrix
+is the URDF links' plus ``armature``
 :math:`I_a` [kg·m²] on its diagonal (each drive's reflected rotor inertia; without it a URDF
 arm's ill-conditioned :math:`M` gives decentralised servos closed-loop modes several times
 faster than f, which chatter at the torque limits). Contacts between the links (the peer
@@ -93,6 +97,11 @@ class MujocoPlant(Plant):
         contacts: Whether the links collide with each other (the peer model's collision
             geometry), True (default, as before the parameter existed); False: no contact is
             simulated, as in the kinematic model.
+        command_cutoff: Cutoff :math:`f_c` [Hz] of a first-order low-pass on the command,
+            applied every MuJoCo step before both servos (libfranka's ``lowpassFilter``:
+            :math:`u \leftarrow u + \beta(\dot q^{cmd} - u)`,
+            :math:`\beta = 2\pi f_c h/(2\pi f_c h + 1)`, at rest at the start), or None
+            (default): the held command itself.
 
     Raises:
         ParameterError: A parameter out of range (naming it).
@@ -113,6 +122,7 @@ class MujocoPlant(Plant):
             Interval(Real, 0, None, closed="left", unit="kg·m²"), scalar=True, per="joint"
         ),
         "contacts": Boolean(),
+        "command_cutoff": [Interval(Real, 0, None, closed="neither", unit="Hz"), None],
     }
 
     def __init__(
@@ -126,6 +136,7 @@ class MujocoPlant(Plant):
         unstable_speed: float = 100.0,
         armature: float | Sequence[float] = 0.0,
         contacts: bool = True,
+        command_cutoff: float | None = None,
     ) -> None:
         check_params(self, locals())
         self.frequency = float(frequency)
@@ -137,6 +148,7 @@ class MujocoPlant(Plant):
         self.unstable_speed = float(unstable_speed)
         self.armature = armature
         self.contacts = bool(contacts)
+        self.command_cutoff = None if command_cutoff is None else float(command_cutoff)
         try:
             import mujoco
         except ImportError:
@@ -245,6 +257,11 @@ class MujocoPlant(Plant):
         model.actuator_biasprm[vel, 2] = -self.kd
         model.opt.timestep = dt / self.substeps
         self._reference = np.array(theta0, dtype=float)
+        self._filtered = np.zeros(robot.nv)
+        self._beta = 1.0
+        if self.command_cutoff is not None:
+            x = 2.0 * math.pi * self.command_cutoff * model.opt.timestep
+            self._beta = x / (x + 1.0)
         data.ctrl[pos] = theta0
         mujoco.mj_forward(model, data)
 
@@ -257,11 +274,18 @@ class MujocoPlant(Plant):
         dofs, tau_max = self._qvel_index, self.tau_max
         pos, vel = self._position_ids, self._velocity_ids
         command = np.asarray(qdot, dtype=float)
-        data.ctrl[vel] = command
+        filtering = self.command_cutoff is not None
+        if not filtering:
+            data.ctrl[vel] = command
         gravcomp = self.compensation == "gravity"
         peak, saturated = 0.0, False
         for _ in range(self.substeps):
-            self._reference = self._reference + command * h
+            if filtering:
+                self._filtered = self._filtered + self._beta * (command - self._filtered)
+                data.ctrl[vel] = self._filtered
+                self._reference = self._reference + self._filtered * h
+            else:
+                self._reference = self._reference + command * h
             data.ctrl[pos] = self._reference
             mujoco.mj_step(model, data)
             applied = data.qfrc_actuator[dofs]
@@ -285,8 +309,13 @@ class MujocoPlant(Plant):
         return PlantStep(robot.configuration(theta), actual, peak, saturated)
 
     def declares(self, dt: float) -> PlantDeclaration:
-        """The servo bandwidth f [Hz] (the servo follows the integrated command)."""
-        return PlantDeclaration(servo_frequency=self.frequency)
+        """The servo bandwidth f [Hz] and the command low-pass as a lag τ [s].
+
+        The servo follows the integrated command; τ = 1/(2π f_c) when there is a cutoff.
+        """
+        cutoff = self.command_cutoff
+        lags = () if cutoff is None else (1.0 / (2.0 * math.pi * cutoff),)
+        return PlantDeclaration(lags=lags, servo_frequency=self.frequency)
 
     def label(self) -> str:
         """``mujoco(f=…,zeta=…)`` plus the non-default options."""
@@ -299,4 +328,6 @@ class MujocoPlant(Plant):
             parts.append(f"armature={self.armature!r}".replace(" ", ""))
         if not self.contacts:
             parts.append("no-contacts")
+        if self.command_cutoff is not None:
+            parts.append(f"cutoff={self.command_cutoff:g}")
         return f"mujoco({','.join(parts)})"

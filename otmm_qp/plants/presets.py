@@ -7,9 +7,9 @@ preset needs the arm's joint efforts (a URDF ``effort`` per joint).
 
 ==============  ===================================================================
 ``franka_fci``  libfranka's rate limiter at 7.5 rad/s² (the smallest of its per-joint
-                limits, for every joint); latency 1 period; MuJoCo servos at 100 Hz
-                (libfranka's default low-pass cutoff, τ = 1/(2π·100 Hz) ≈ 1.6 ms), 1 ms
-                MuJoCo step
+                limits, for every joint); latency 1 period; libfranka's 100 Hz command
+                low-pass (τ = 1/(2π·100 Hz) ≈ 1.6 ms) at the 1 ms MuJoCo step, and servos
+                at 100 Hz
 ``ur_e_series`` latency 1 period; servoj look-ahead smoothing as a lag τ = 0.03 s (its
                 smallest look-ahead); MuJoCo servos at 300/(2π) ≈ 47.7 Hz (servoj's default
                 gain 300 as ω [1/s]), 2 ms step
@@ -53,6 +53,7 @@ PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
         {
             "type": "mujoco",
             "frequency": 100.0,
+            "command_cutoff": 100.0,
             "damping_ratio": 1.0,
             "timestep": 0.001,
             "armature": ARMATURE,

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -157,6 +157,11 @@ class Rows:
     """
 
     rows: list[dict[str, Any]]
+    #: ``keys → (rows list id, its length, values → rows)``: :meth:`select`'s indexes, rebuilt
+    #: when ``rows`` is replaced or grows (None: a key's values are not hashable).
+    _indexes: dict[tuple[str, ...], Any] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def controllers(self) -> list[str]:
         """Competing controllers in first-seen order (the reference excluded)."""
@@ -167,8 +172,35 @@ class Rows:
         return list(dict.fromkeys(r["robot"] for r in self.rows))
 
     def select(self, **equal: Any) -> list[dict[str, Any]]:
-        """Rows whose columns equal the given values."""
+        """Rows whose columns equal the given values, in their order.
+
+        Served from an index per set of columns (built on first use, O(rows); a report asks
+        thousands of times); values that are not hashable fall back to a scan.
+        """
+        keys = tuple(sorted(equal))
+        wanted = tuple(equal[k] for k in keys)
+        index = self._index(keys)
+        if index is not None:
+            try:
+                return list(index.get(wanted, ()))
+            except TypeError:  # an unhashable value asked for
+                pass
         return [r for r in self.rows if all(r.get(k) == v for k, v in equal.items())]
+
+    def _index(self, keys: tuple[str, ...]) -> dict[tuple[Any, ...], list[dict[str, Any]]] | None:
+        """``values → rows`` for ``keys`` (None when a row's value is not hashable)."""
+        stamp = (id(self.rows), len(self.rows))
+        cached = self._indexes.get(keys)
+        if cached is not None and cached[0] == stamp:
+            return cached[1]
+        index: dict[tuple[Any, ...], list[dict[str, Any]]] | None = {}
+        try:
+            for row in self.rows:
+                index.setdefault(tuple(row.get(k) for k in keys), []).append(row)  # type: ignore[union-attr]
+        except TypeError:
+            index = None
+        self._indexes[keys] = (stamp, index)
+        return index
 
     def information_labels(self) -> dict[str, str]:
         """``row name → information class`` (``causal``, ``preview H s``, ``offline``).

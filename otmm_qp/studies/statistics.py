@@ -23,8 +23,9 @@ r"""Statistics of a study: intervals, paired tests, multiple-testing correction,
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
@@ -33,6 +34,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 #: Batches used to estimate the Monte-Carlo error of bootstrap endpoints.
 MC_BATCHES = 10
@@ -91,14 +93,59 @@ def significant_digits(value: float, error: float, most: int = MOST_DIGITS) -> i
     return max(1, min(most, digits))
 
 
-def _resampled_medians(data: FloatArray, rng: np.random.Generator, resamples: int) -> FloatArray:
-    """Medians of ``resamples`` resamples with replacement (drawn in blocks of ≤ 2·10⁶ values)."""
-    block = max(1, 2_000_000 // max(1, data.size))
-    medians = np.empty(resamples)
+def _resample_indices(seed: int, size: int, resamples: int) -> Iterator[IntArray]:
+    """Index blocks ``(count, size)`` of ``default_rng(seed).choice(size, replace=True)``.
+
+    The draws ``rng.choice(data, ...)`` makes for any ``data`` of this size (blocks of ≤ 2·10⁶
+    values), each row sorted. Cached (:func:`_sorted_indices`) up to :data:`CACHED_DRAWS`
+    values: a report bootstraps thousands of samples of the same size with the same seed.
+    """
+    if size * resamples <= CACHED_DRAWS:
+        yield from _sorted_indices(seed, size, resamples)
+        return
+    yield from _draw_sorted(seed, size, resamples)
+
+
+#: Most index values kept per cached (seed, size, resamples) draw (8 bytes each).
+CACHED_DRAWS = 4_000_000
+
+
+def _draw_sorted(seed: int, size: int, resamples: int) -> Iterator[IntArray]:
+    rng = np.random.default_rng(seed)
+    block = max(1, 2_000_000 // max(1, size))
     for start in range(0, resamples, block):
         count = min(block, resamples - start)
-        samples = rng.choice(data, size=(count, data.size), replace=True)
-        medians[start : start + count] = np.median(samples, axis=1)
+        yield np.sort(rng.choice(size, size=(count, size), replace=True), axis=1)
+
+
+@functools.lru_cache(maxsize=16)
+def _sorted_indices(seed: int, size: int, resamples: int) -> tuple[IntArray, ...]:
+    blocks = tuple(_draw_sorted(seed, size, resamples))
+    for block in blocks:
+        block.setflags(write=False)
+    return blocks
+
+
+def _resampled_medians(data: FloatArray, seed: int, resamples: int) -> FloatArray:
+    r"""Medians of ``resamples`` resamples of the sorted ``data`` with replacement.
+
+    The resamples are ``default_rng(seed).choice(data, (resamples, n), replace=True)``; as
+    ``data`` is sorted, a resample's median is that of its middle sorted indices:
+    :math:`x_{(i_{m})}` for odd n, :math:`(x_{(i_{m-1})} + x_{(i_m)})/2` for even n — the
+    values :func:`numpy.median` returns, bit for bit, without sorting each resample's values.
+    """
+    n = data.size
+    half = n // 2
+    medians = np.empty(resamples)
+    start = 0
+    for block in _resample_indices(seed, n, resamples):
+        out = medians[start : start + block.shape[0]]
+        if n % 2:
+            np.take(data, block[:, half], out=out)
+        else:
+            np.add(data[block[:, half - 1]], data[block[:, half]], out=out)
+            out /= 2.0
+        start += block.shape[0]
     return medians
 
 
@@ -116,7 +163,7 @@ def bootstrap_interval(
     data = np.sort(data[np.isfinite(data)])
     if data.size == 0:
         return NO_INTERVAL
-    medians = _resampled_medians(data, np.random.default_rng(seed), resamples)
+    medians = _resampled_medians(data, seed, resamples)
     alpha = (1.0 - confidence) / 2.0
     low, high = np.quantile(medians, [alpha, 1.0 - alpha])
     error = 0.0
@@ -207,6 +254,23 @@ class PairedResult:
         return self.p_holm < ALPHA
 
 
+def average_ranks(values: FloatArray) -> FloatArray:
+    """Ranks 1..n of ``values`` (n,), ties sharing their average rank.
+
+    :func:`scipy.stats.rankdata` with ``method="average"``, its algorithm and values bit for
+    bit, without its per-call dispatch (the report ranks hundreds of thousands of samples).
+    """
+    x = np.asarray(values, dtype=float).ravel()
+    order = np.argsort(x, kind="mergesort")
+    ordered = x[order]
+    first = np.empty(x.size, dtype=bool)
+    first[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    dense = np.cumsum(first)[np.argsort(order, kind="mergesort")]
+    count = np.r_[np.nonzero(first)[0], x.size]
+    return 0.5 * (count[dense] + count[dense - 1] + 1)
+
+
 def signed_rank_sums(differences: FloatArray) -> tuple[float, float]:
     """``(W⁻, W⁺)``: sums of the average ranks of ``|d|`` over the negative / positive ``d``.
 
@@ -216,7 +280,7 @@ def signed_rank_sums(differences: FloatArray) -> tuple[float, float]:
     d = d[d != 0.0]
     if d.size == 0:
         return 0.0, 0.0
-    ranks = stats.rankdata(np.abs(d))
+    ranks = average_ranks(np.abs(d))
     return float(ranks[d < 0].sum()), float(ranks[d > 0].sum())
 
 
@@ -271,14 +335,21 @@ def exact_signed_rank_p(differences: FloatArray) -> float:
     d = d[d != 0.0]
     if d.size == 0:
         return 1.0
-    ranks = stats.rankdata(np.abs(d))
+    ranks = average_ranks(np.abs(d))
     observed = float(ranks[d > 0].sum())
-    patterns = (np.arange(2**d.size)[:, None] >> np.arange(d.size)) & 1
-    null = patterns @ ranks
+    null = _sign_patterns(d.size) @ ranks
     gamma = abs(np.finfo(float).eps * 100 * observed)
     less = np.count_nonzero(null <= observed + gamma) / null.size
     greater = np.count_nonzero(null >= observed - gamma) / null.size
     return float(min(1.0, 2.0 * min(less, greater)))
+
+
+@functools.lru_cache(maxsize=EXACT_PAIRS + 1)
+def _sign_patterns(m: int) -> IntArray:
+    """Every 0/1 sign pattern of ``m`` ranks, shape ``(2**m, m)`` (read-only, cached)."""
+    patterns = (np.arange(2**m)[:, None] >> np.arange(m)) & 1
+    patterns.setflags(write=False)
+    return patterns
 
 
 def paired_test(

@@ -4,6 +4,7 @@
     python benchmarks/bench_reference.py --tasks 0 --workers 2     # the whole study
     python benchmarks/bench_reference.py --tasks 200 --check 20    # + independent re-solve
     python benchmarks/bench_reference.py --stored DIR --check 40   # check a stored study only
+    python benchmarks/bench_reference.py --stored DIR --compare BASE  # verdicts of DIR vs BASE
 
 Scales the study's generator counts to about ``--tasks`` tasks in total (0: the study as
 shipped), runs it into a fresh directory (``--workers 1``: in-process; more: an embedded
@@ -17,7 +18,10 @@ Dask LocalCluster) and reports, from the stored rows and the run's outcome:
 * with ``--check N``: an independent re-solve of ``N`` sampled tasks (every ``k``-th oracle row)
   by a second method (:func:`otmm_qp.reference.independent.slsqp_upper`, SLSQP from the
   damped-IK start and from the stored reference's best start), and how many it improves by
-  more than 5 % (target: ≤ 5 % of them).
+  more than 5 % (target: ≤ 5 % of them);
+* with ``--compare BASE``: what the study's references change against a stored study ``BASE``
+  of the same tasks and controllers (another polish cap, another solver), judged as the report
+  judges (:func:`compare`).
 """
 
 from __future__ import annotations
@@ -136,7 +140,120 @@ def independent_check(
     }
 
 
-def _check_stored(out: Path, count: int, target: Path | None) -> int:
+#: A stored value counts as moved when it is more than this fraction above the base's.
+MOVED = 0.05
+
+
+def compare(base: Path, other: Path) -> dict[str, Any]:
+    """What the references of ``other`` change against those of ``base`` (same tasks, rows).
+
+    Both studies are read as the report reads them (:func:`otmm_qp.studies.rows.load_rows`:
+    success re-judged against each study's own references, oracle-relative error only
+    within the limits). Counted over the tasks and controller rows both hold:
+
+    * ``success_changed``: controller rows whose ``success`` differs (of ``rows``);
+    * ``labels_changed``: tasks whose ``reference.status`` differs (of ``tasks``), and
+      ``labels``: ``"base → other"`` → count;
+    * ``groups_changed``: (robot, report task group) whose set of tasks differs (of
+      ``groups``);
+    * ``accuracy_changed``: (robot, all rows or one task group) whose first pick of the
+      paired-Wilcoxon accuracy verdict differs (of ``accuracy``);
+    * on the ``not_achievable`` tasks of ``base``: how often ``reference.upper`` and the
+      position optimum ``reference.max_error`` [m] of ``other`` are more than :data:`MOVED`
+      above the base's (``upper_moved``, ``position_moved``);
+    * ``relative_shift``: median and largest ``|Δ oracle-relative error|`` [m] over the
+      controller rows where both are defined (``relative_rows``).
+    """
+    from otmm_qp.studies.rows import Rows, load_rows
+    from otmm_qp.studies.verdicts import accuracy_verdict, task_groups
+
+    _, rows_a = load_rows(base)
+    _, rows_b = load_rows(other)
+
+    def split(rows: Rows) -> tuple[dict[str, Any], dict[tuple[str, str], Any]]:
+        oracle = {r["task_id"]: r for r in rows.rows if r["controller"] == "oracle"}
+        own = {(r["task_id"], r["controller"]): r for r in rows.rows if r["controller"] != "oracle"}
+        return oracle, own
+
+    oracle_a, own_a = split(rows_a)
+    oracle_b, own_b = split(rows_b)
+    tasks = sorted(oracle_a.keys() & oracle_b.keys())
+    keys = sorted(own_a.keys() & own_b.keys())
+    success = sum(bool(own_a[k]["success"]) != bool(own_b[k]["success"]) for k in keys)
+    labels: dict[str, int] = defaultdict(int)
+    for task in tasks:
+        was, now = oracle_a[task]["reference.status"], oracle_b[task]["reference.status"]
+        if was != now:
+            labels[f"{was} → {now}"] += 1
+    groups = accuracy = groups_changed = accuracy_changed = 0
+    for robot in rows_a.robots():
+        kinds_a = {g.label: g for g in task_groups(rows_a, robot)}
+        kinds_b = {g.label: g for g in task_groups(rows_b, robot)}
+        oracle_rows = [r for r in rows_a.rows if r["controller"] == "oracle"]
+        oracle_rows_b = [r for r in rows_b.rows if r["controller"] == "oracle"]
+        selections = [(Rows(rows_a.rows), Rows(rows_b.rows))]
+        for label, group in kinds_a.items():
+            groups += 1
+            other_group = kinds_b.get(label)
+            members_b = {r["task_id"] for r in other_group.rows} if other_group else set()
+            groups_changed += {r["task_id"] for r in group.rows} != members_b
+            if other_group is not None:
+                selections.append(
+                    (Rows(group.rows + oracle_rows), Rows(other_group.rows + oracle_rows_b))
+                )
+        for selected_a, selected_b in selections:
+            top_a = accuracy_verdict(selected_a, robot).top
+            top_b = accuracy_verdict(selected_b, robot).top
+            if not top_a and not top_b:
+                continue
+            accuracy += 1
+            accuracy_changed += top_a[:1] != top_b[:1]
+    hard = [t for t in tasks if oracle_a[t]["reference.status"] != "achievable"]
+
+    def moved(column: str) -> int:
+        return sum(
+            float(oracle_b[t][column]) > (1.0 + MOVED) * float(oracle_a[t][column]) for t in hard
+        )
+
+    shifts = [
+        abs(float(own_b[k]["oracle_relative_error"]) - float(own_a[k]["oracle_relative_error"]))
+        for k in keys
+        if own_a[k].get("oracle_relative_error") is not None
+        and own_b[k].get("oracle_relative_error") is not None
+    ]
+    return {
+        "tasks": len(tasks),
+        "rows": len(keys),
+        "success_changed": success,
+        "labels_changed": sum(labels.values()),
+        "labels": dict(labels),
+        "groups": groups,
+        "groups_changed": groups_changed,
+        "accuracy": accuracy,
+        "accuracy_changed": accuracy_changed,
+        "not_achievable": len(hard),
+        "upper_moved": moved("reference.upper"),
+        "position_moved": moved("reference.max_error"),
+        "relative_rows": len(shifts),
+        "relative_shift_median": statistics.median(shifts) if shifts else 0.0,
+        "relative_shift_max": max(shifts, default=0.0),
+    }
+
+
+def _print_compare(numbers: dict[str, Any], base: Path) -> None:
+    print(f"against {base}: success changed on {numbers['success_changed']} of "
+          f"{numbers['rows']} rows; labels changed on {numbers['labels_changed']} of "
+          f"{numbers['tasks']} tasks {numbers['labels'] or ''}; task groups changed "
+          f"{numbers['groups_changed']} of {numbers['groups']}; accuracy first pick changed "
+          f"{numbers['accuracy_changed']} of {numbers['accuracy']}; on the "
+          f"{numbers['not_achievable']} tasks not achievable upper / position optimum "
+          f"> {100 * MOVED:.0f} % higher on {numbers['upper_moved']} / "
+          f"{numbers['position_moved']}; |Δ oracle-relative error| median "
+          f"{numbers['relative_shift_median']:.3g} m, largest "
+          f"{numbers['relative_shift_max']:.3g} m ({numbers['relative_rows']} rows)")  # fmt: skip
+
+
+def _check_stored(out: Path, count: int, target: Path | None, base: Path | None = None) -> int:
     """The labels table and the independent check of the study stored in ``out``."""
     from otmm_qp.studies.storage import read_study_folder
 
@@ -148,8 +265,12 @@ def _check_stored(out: Path, count: int, target: Path | None) -> int:
     check = independent_check(config, rows, count)
     print(f"{out}: {len(rows)} tasks (stored)")
     _print_check(check)
+    numbers: dict[str, Any] = {"groups": summarise(rows), "check": check}
+    if base is not None:
+        numbers["compare"] = compare(base, out)
+        _print_compare(numbers["compare"], base)
     if target is not None:
-        target.write_text(json.dumps({"groups": summarise(rows), "check": check}, indent=2))
+        target.write_text(json.dumps(numbers, indent=2))
     return 0
 
 
@@ -173,9 +294,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--stored", type=Path, help="read this stored study instead of running one (--check only)"
     )
+    parser.add_argument(
+        "--compare", type=Path, help="a stored study of the same tasks to compare verdicts with"
+    )
     args = parser.parse_args(argv)
     if args.stored is not None:
-        return _check_stored(args.stored, args.check, args.json)
+        return _check_stored(args.stored, args.check, args.json, args.compare)
+    if args.compare is not None and args.out is None:
+        parser.error("--compare needs --out (the run is read back from it)")
     config = scaled(args.config, args.tasks)
     plan = plan_study(config, str(args.config))
     with tempfile.TemporaryDirectory() as scratch:
@@ -203,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
         "groups": summarise(rows),
         "check": independent_check(config, rows, args.check),
     }
+    if args.compare is not None and args.out is not None:
+        results["compare"] = compare(args.compare, args.out)
     print(f"{args.config.name}: {results['tasks']} tasks, {outcome.ran} episodes, "
           f"workers {args.workers}, wall {outcome.seconds:.1f} s")  # fmt: skip
     print("| robot/generator | tasks | achievable / unachievable / undecided / failed "
@@ -218,6 +346,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"reference {reference_s:.1f} s of {outcome.compute_seconds:.1f} s compute "
           f"= {100 * results['reference_share']:.1f} % "
           f"({results['per_task_s']:.3f} s per task)")  # fmt: skip
+    if args.compare is not None:
+        _print_compare(results["compare"], args.compare)
     if args.json is not None:
         args.json.write_text(json.dumps(results, indent=2, default=str))
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -200,11 +201,8 @@ def test_bad_budget_is_one_line_exit_2_before_any_compute(
     assert not out.exists()
 
 
-def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def _bench_reference() -> Any:
     import importlib.util
-    import json
-
-    import yaml
 
     root = Path(__file__).resolve().parent.parent
     spec = importlib.util.spec_from_file_location(
@@ -213,6 +211,15 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    return module
+
+
+def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    import yaml
+
+    module = _bench_reference()
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(dict(STUDY, controllers=STUDY["controllers"][:1])))
     out = tmp_path / "bench.json"
@@ -233,3 +240,53 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     assert stored["check"]["ratios"] == numbers["check"]["ratios"]
     assert stored["groups"] == numbers["groups"]
     assert "independent SLSQP re-solve of 1 tasks" in capsys.readouterr().out
+
+
+def test_bench_reference_compares_two_studies_as_the_report_judges(
+    tmp_path: Path, study_out: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--compare``: a study against itself changes nothing; against the same tasks with
+    the polish and the least squares switched off, each count is what the stored rows say."""
+    import json
+
+    from otmm_qp.studies.rows import load_rows
+
+    module = _bench_reference()
+    same = module.compare(study_out, study_out)
+    assert same["tasks"] == 5 and same["rows"] == 15
+    assert same["success_changed"] == same["labels_changed"] == 0
+    assert same["groups_changed"] == same["accuracy_changed"] == 0
+    assert same["upper_moved"] == same["position_moved"] == 0
+    assert same["relative_shift_max"] == 0.0
+    assert same["accuracy"] >= 1 and same["groups"] >= 3
+
+    rough = tmp_path / "rough"
+    cheap = dict(STUDY, reference={"polish_iterations": 0, "iterations": 0, "minimax_rounds": 0})
+    run_study(plan_study(parse_study(cheap)), rough, "rough.yaml", workers=1)
+    target = tmp_path / "compare.json"
+    argv = ["--stored", str(rough), "--compare", str(study_out), "--json", str(target)]
+    assert module.main(argv) == 0
+    numbers = json.loads(target.read_text())["compare"]
+    _, base = load_rows(study_out)
+    _, other = load_rows(rough)
+    status = {r["task_id"]: r["reference.status"] for r in base.rows if r["controller"] == "oracle"}
+    now = {r["task_id"]: r["reference.status"] for r in other.rows if r["controller"] == "oracle"}
+    assert numbers["labels_changed"] == sum(status[t] != now[t] for t in status)
+    success = {(r["task_id"], r["controller"]): r["success"] for r in base.rows}
+    assert numbers["success_changed"] == sum(
+        bool(success[(r["task_id"], r["controller"])]) != bool(r["success"])
+        for r in other.rows
+        if r["controller"] != "oracle"
+    )
+    hard = [t for t in status if status[t] != "achievable"]
+    assert numbers["not_achievable"] == len(hard)
+    upper = {r["task_id"]: r["reference.upper"] for r in base.rows if r["controller"] == "oracle"}
+    rough_upper = {
+        r["task_id"]: r["reference.upper"] for r in other.rows if r["controller"] == "oracle"
+    }
+    # without the solves the pool is a subset of the full one: never a lower upper bound
+    assert all(rough_upper[t] >= upper[t] for t in upper)
+    assert numbers["upper_moved"] == sum(rough_upper[t] > 1.05 * upper[t] for t in hard)
+    assert "success changed on" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        module.main(["--tasks", "3", "--compare", str(study_out)])  # --compare needs --out

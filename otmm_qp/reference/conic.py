@@ -86,6 +86,9 @@ class ConicEpigraph:
         for j in range(nv, size):
             diff[j, j - nv] = -1.0
         self._linear = sp.vstack([eye, diff.tocsr()], format="csr")
+        self._rows_key: tuple[bytes, bytes] | None = None
+        self._rows = sp.csr_matrix((0, size + 1))
+        self._stacked: tuple[sp.csc_matrix, sp.csc_matrix] | None = None
 
     def evaluate(self, path: FloatArray) -> tuple[FloatArray, FloatArray, float]:
         """Errors ``(N, n)``, merits per part ``(N−1, parts)`` and ``φ`` of a path."""
@@ -109,34 +112,43 @@ class ConicEpigraph:
         return local, tie.ravel(), hessians
 
     def _cones(self, local: list[Any]) -> tuple[sp.csc_matrix, FloatArray, list[int]]:
-        """Rows ``A x + s = b``, ``s ∈ SOC`` of every ``(k, p)``: ``s = (t, (e − Jδ)/tol)``."""
-        nv, size = self.problem.nv, self.size
+        """Rows ``A x + s = b``, ``s ∈ SOC`` of every ``(k, p)``: ``s = (t, (e − Jδ)/tol)``.
+
+        Per block ``b`` and part ``p`` (in that order) one cone of ``d_p + 1`` rows: the
+        ``t`` row (``−1`` in the last column, ``b = 0``), then ``d_p`` rows
+        ``J_{k,p}/tol_p`` in the block's columns with ``b = e_{k,p}/tol_p``.
+        """
+        nv, size, blocks = self.problem.nv, self.size, len(local)
+        errors = np.array([error for error, _ in local])  # (B, n)
+        jacobians = np.array([jacobian for _, jacobian in local])  # (B, n, nv)
+        per_block = sum(rows_p.stop - rows_p.start + 1 for rows_p, _ in self.parts)
+        first = np.arange(blocks) * per_block  # (B,) first row of each block
+        columns = np.arange(blocks)[:, None] * nv + np.arange(nv)[None, :]  # (B, nv)
         rows: list[np.ndarray] = []
         cols: list[np.ndarray] = []
         vals: list[np.ndarray] = []
-        rhs: list[float] = []
+        rhs = np.zeros(blocks * per_block)
         dims: list[int] = []
-        row = 0
-        for b, (error, jacobian) in enumerate(local):
-            for rows_p, tolerance in self.parts:
-                part_j = jacobian[rows_p] / tolerance  # (d, nv)
-                d = part_j.shape[0]
-                rows.append(np.array([row]))
-                cols.append(np.array([size]))
-                vals.append(np.array([-1.0]))
-                r, c = np.meshgrid(np.arange(d), np.arange(nv), indexing="ij")
-                rows.append((row + 1 + r).ravel())
-                cols.append((b * nv + c).ravel())
-                vals.append(part_j.ravel())
-                rhs.append(0.0)
-                rhs.extend((error[rows_p] / tolerance).tolist())
-                dims.append(d + 1)
-                row += d + 1
+        offset = 0
+        for rows_p, tolerance in self.parts:
+            part_j = jacobians[:, rows_p] / tolerance  # (B, d, nv)
+            d = part_j.shape[1]
+            top = first + offset
+            below = top[:, None] + 1 + np.arange(d)  # (B, d): the part's error rows
+            rows.append(top)
+            cols.append(np.full(blocks, size))
+            vals.append(np.full(blocks, -1.0))
+            rows.append(np.broadcast_to(below[:, :, None], part_j.shape).ravel())
+            cols.append(np.broadcast_to(columns[:, None, :], part_j.shape).ravel())
+            vals.append(part_j.ravel())
+            rhs[below.ravel()] = (errors[:, rows_p] / tolerance).ravel()
+            dims.append(d + 1)
+            offset += d + 1
         matrix = sp.csc_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(row, size + 1),
+            shape=(blocks * per_block, size + 1),
         )
-        return matrix, np.asarray(rhs), dims
+        return matrix, rhs, dims * blocks
 
     def _bounds(self, path: FloatArray, radius: float) -> tuple[FloatArray, FloatArray]:
         """Lower and upper ends of ``C δ`` (box ∩ trust radius, then the rate rows)."""
@@ -151,29 +163,53 @@ class ConicEpigraph:
             np.concatenate([box_hi.ravel(), np.maximum((step - moves).ravel(), 0.0)]),
         )
 
+    def _hessian(self, hessians: FloatArray) -> sp.csc_matrix:
+        """Upper triangle of ``blockdiag(½(B_b + B_bᵀ), 0)``, shape ``(B·nv + 1, B·nv + 1)``.
+
+        Every entry of each block's upper triangle is stored, zeros included (as
+        ``scipy.sparse.block_diag`` of dense blocks, then ``triu``, store them): one pattern.
+        """
+        blocks, nv = hessians.shape[0], self.problem.nv
+        symmetric = 0.5 * (hessians + hessians.transpose(0, 2, 1))
+        i, j = np.triu_indices(nv)
+        values = symmetric[:, i, j]  # (B, nv(nv+1)/2)
+        shift = (np.arange(blocks) * nv)[:, None]
+        rows, cols = (shift + i[None, :]).ravel(), (shift + j[None, :]).ravel()
+        return sp.csc_matrix((values.ravel(), (rows, cols)), shape=(self.size + 1, self.size + 1))
+
+    def _constraints(
+        self, cone_a: sp.csc_matrix, up: np.ndarray, down: np.ndarray
+    ) -> sp.csc_matrix:
+        """``A = [cone rows; C[up]; −C[down]]`` (a zero column for ``t``), kept while the same."""
+        key = (up.tobytes(), down.tobytes())
+        if self._rows_key != key:
+            linear = sp.hstack([self._linear, sp.csr_matrix((2 * self.size, 1))], format="csr")
+            self._rows = sp.vstack([linear[up], -linear[down]], format="csr")
+            self._rows_key = key
+            self._stacked = None
+        if self._stacked is None or self._stacked[0] is not cone_a:
+            stacked = sp.vstack([cone_a.tocsr(), self._rows], format="csr").tocsc()
+            self._stacked = (cone_a, stacked)
+        return self._stacked[1]
+
     def _solve(
         self,
-        hessians: FloatArray,
+        hessian: sp.csc_matrix,
         cost: FloatArray,
         cones: tuple[sp.csc_matrix, FloatArray, list[int]],
         lower: FloatArray,
         upper: FloatArray,
     ) -> tuple[FloatArray, FloatArray, sp.csc_matrix, FloatArray, list[Any]]:
-        """One cone program; ``(x, z, A, b, cone list)``.
+        """One cone program; ``(x, z, A, b, cone list)`` (``hessian``: :meth:`_hessian`).
 
         Raises:
             SolverFailure: Clarabel returned no finite solution or a failure status.
         """
         size = self.size
-        hessian = sp.block_diag(
-            [*(0.5 * (h + h.T) for h in hessians), sp.csc_matrix((1, 1))], format="csc"
-        )
-        hessian = sp.triu(hessian, format="csc")
         cone_a, cone_b, dims = cones
         up = upper < BIG / 2
         down = lower > -BIG / 2
-        linear = sp.hstack([self._linear, sp.csc_matrix((2 * size, 1))], format="csr")
-        a = sp.vstack([cone_a, linear[up], -linear[down]], format="csc")
+        a = self._constraints(cone_a, up, down)
         b = np.concatenate([cone_b, upper[up], -lower[down]])
         count = int(np.count_nonzero(up) + np.count_nonzero(down))
         kinds: list[Any] = [clarabel.SecondOrderConeT(d) for d in dims]
@@ -234,12 +270,11 @@ class ConicEpigraph:
         while best.iterations < iterations and time.perf_counter() < deadline:
             if linear is None:
                 local, tie, hessians = self._linearise(current)
-                cones = self._cones(local)
-                linear = (tie, hessians, cones)
-            tie, hessians, cones = linear
+                linear = (tie, hessians, self._hessian(hessians), self._cones(local))
+            tie, hessians, hessian, cones = linear
             cost = np.concatenate([tie, [1.0]])
             lower, upper = self._bounds(current, radius)
-            x, z, a, b, dims = self._solve(hessians, cost, cones, lower, upper)
+            x, z, a, b, dims = self._solve(hessian, cost, cones, lower, upper)
             best.iterations += 1
             delta = x[:-1].reshape(self.blocks, problem.nv)
             quadratic = 0.5 * float(np.einsum("bi,bij,bj", delta, hessians, delta))

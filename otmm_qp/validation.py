@@ -63,6 +63,7 @@ __all__ = [
     "describe",
     "parameters",
     "per_joint",
+    "positive_per_joint",
     "signature_parameters",
 ]
 
@@ -471,6 +472,17 @@ def declaration_problems(owner: object, reserved: Sequence[str] = ()) -> list[st
             except ParameterError as error:
                 problems.append(f"default refused: {error}")
     return problems
+
+
+def positive_per_joint(unit: str) -> ArrayOf:
+    """A limit per joint: a number > 0 [``unit``] (inf: that joint unlimited) or one per joint.
+
+    The declaration of every rate-type limit (accelerations, decelerations) beside
+    :func:`per_joint`, which turns the value into an ``(nv,)`` array once the robot is known.
+    """
+    return ArrayOf(
+        Interval(Real, 0, None, closed="neither", unit=unit, inf_ok=True), scalar=True, per="joint"
+    )
 
 
 def per_joint(

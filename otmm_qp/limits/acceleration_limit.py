@@ -3,14 +3,13 @@ r"""The joint-acceleration limit around the previous velocity: ``|q̇ − q̇_pr
 from __future__ import annotations
 
 from collections.abc import Sequence
-from numbers import Real
 from typing import ClassVar
 
 import numpy as np
 
 from otmm_qp.limits.limit import Box, Limit, per_joint
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params
+from otmm_qp.validation import Constraints, check_params, positive_per_joint
 
 __all__ = ["AccelerationLimit"]
 
@@ -33,11 +32,7 @@ class AccelerationLimit(Limit):
     name: ClassVar[str] = "acceleration"
     priority: ClassVar[int] = 2
     parameter_constraints: ClassVar[Constraints] = {
-        "a_max": ArrayOf(
-            Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
-            scalar=True,
-            per="joint",
-        ),
+        "a_max": positive_per_joint("rad/s²"),
     }
 
     def __init__(self, a_max: float | Sequence[float]) -> None:

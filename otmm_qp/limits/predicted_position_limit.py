@@ -56,7 +56,7 @@ from otmm_qp.limits.position_limit import PositionLimit
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.rate_limit import rate_limit_step
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import ArrayOf, Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import Constraints, Interval, OneOf, check_params, positive_per_joint
 
 __all__ = ["FROM_PLANT", "PredictedPositionLimit"]
 
@@ -114,24 +114,9 @@ class PredictedPositionLimit(PositionLimit):
         ],
         "reference": [OneOf("measured", "command"), _PLANT],
         "noise_bound": _non_negative("-"),
-        "deceleration": [
-            ArrayOf(
-                Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
-                scalar=True,
-                per="joint",
-            ),
-            None,
-        ],
+        "deceleration": [positive_per_joint("rad/s²"), None],
         "ramp_start": [Interval(Real, 0, None, closed="neither", unit="rad"), None],
-        "rate_limit": [
-            ArrayOf(
-                Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
-                scalar=True,
-                per="joint",
-            ),
-            _PLANT,
-            None,
-        ],
+        "rate_limit": [positive_per_joint("rad/s²"), _PLANT, None],
         "ramp_stop": _non_negative("rad"),
     }
 

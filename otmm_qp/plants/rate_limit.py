@@ -23,7 +23,6 @@ same limiter on its own commands and bounds the travel the limiter needs to stop
 from __future__ import annotations
 
 from collections.abc import Sequence
-from numbers import Real
 from typing import ClassVar
 
 import numpy as np
@@ -31,7 +30,7 @@ import numpy as np
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import ArrayOf, Constraints, Interval, check_params, per_joint
+from otmm_qp.validation import Constraints, check_params, per_joint, positive_per_joint
 
 __all__ = ["RateLimitPlant", "rate_limit_step"]
 
@@ -65,11 +64,7 @@ class RateLimitPlant(Plant):
 
     name: ClassVar[str] = "rate_limit"
     parameter_constraints: ClassVar[Constraints] = {
-        "acceleration": ArrayOf(
-            Interval(Real, 0, None, closed="neither", unit="rad/s²", inf_ok=True),
-            scalar=True,
-            per="joint",
-        ),
+        "acceleration": positive_per_joint("rad/s²"),
     }
 
     def __init__(self, acceleration: float | Sequence[float]) -> None:

@@ -40,7 +40,6 @@ from otmm_qp.reference.epigraph import (
     ACCEPTED,
     INITIAL_RADIUS,
     KKT_TOLERANCE,
-    MAX_RADIUS,
     MIN_RADIUS,
     PROXIMAL,
     QP_TOLERANCE,
@@ -48,9 +47,9 @@ from otmm_qp.reference.epigraph import (
     TIE_BREAK,
     EpigraphOutcome,
     EpigraphSQP,
+    trust_region_trial,
 )
 from otmm_qp.reference.problem import BIG, TrackingProblem
-from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.sqp import SolverFailure
 from otmm_qp.robots.robot import FloatArray
 
@@ -289,23 +288,19 @@ class ConicEpigraph:
             if stationary or longest <= STEP_TOLERANCE or predicted <= 0.0:
                 best.converged = stationary or longest <= STEP_TOLERANCE
                 break
-            trial = current.copy()
-            trial[1:] += delta
-            trial = project_path(trial, problem.lower, problem.upper, problem.step)
-            _, trial_merits, trial_phi = self.evaluate(trial)
-            ratio = (phi - trial_phi) / predicted
-            if ratio > 0.1 and trial_phi < phi:
-                current, merits, phi = trial, trial_merits, trial_phi
-                top = float(np.max(merits))
-                if top < best.merit:
-                    best.path, best.merit = current, top
-                if ratio > 0.75 and longest > 0.9 * radius:
-                    radius = min(2.0 * radius, MAX_RADIUS)
-                linear = None
-            else:
-                radius = 0.25 * min(radius, longest)
+            step = trust_region_trial(
+                problem, self.evaluate, current, delta, phi, predicted, radius
+            )
+            radius = step.radius
+            if step.path is None:
                 if radius < MIN_RADIUS:
                     break
+                continue
+            current, merits, phi = step.path, step.merits, step.phi
+            top = float(np.max(merits))
+            if top < best.merit:
+                best.path, best.merit = current, top
+            linear = None
         if not math.isfinite(best.merit):
             raise SolverFailure("no finite merit")
         return best

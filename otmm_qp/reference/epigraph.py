@@ -41,8 +41,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import clarabel
 import numpy as np
@@ -81,6 +82,52 @@ def _settings() -> Any:
     settings.max_iter = 60
     settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = QP_TOLERANCE
     return settings
+
+
+class TrialStep(NamedTuple):
+    """The outcome of :func:`trust_region_trial`.
+
+    Attributes:
+        path: The accepted path ``(N, nv)``, or None when the step was rejected.
+        merits: The trial path's merits.
+        phi: The trial path's merit function.
+        radius: The trust radius [rad] for the next subproblem.
+    """
+
+    path: FloatArray | None
+    merits: FloatArray
+    phi: float
+    radius: float
+
+
+def trust_region_trial(
+    problem: TrackingProblem,
+    evaluate: Callable[[FloatArray], tuple[FloatArray, FloatArray, float]],
+    current: FloatArray,
+    delta: FloatArray,
+    phi: float,
+    predicted: float,
+    radius: float,
+) -> TrialStep:
+    r"""Try ``current`` moved by ``delta`` (projected into the limits) as the next iterate.
+
+    Accepted when the actual decrease is more than a tenth of the model's ``predicted`` one,
+    :math:`\rho = (\phi - \phi_{trial})/\text{predicted} > 0.1` with
+    :math:`\phi_{trial} < \phi`; the radius then doubles (up to :data:`MAX_RADIUS`) when
+    :math:`\rho > 0.75` and the step used 90 % of it. Rejected: the radius shrinks to a quarter
+    of ``min(radius, ‖δ‖∞)``. ``delta`` has shape ``(N − 1, nv)`` (the first sample is fixed).
+    """
+    longest = float(np.max(np.abs(delta)))
+    trial = current.copy()
+    trial[1:] += delta
+    trial = project_path(trial, problem.lower, problem.upper, problem.step)
+    _, trial_merits, trial_phi = evaluate(trial)
+    ratio = (phi - trial_phi) / predicted
+    if ratio > 0.1 and trial_phi < phi:
+        if ratio > 0.75 and longest > 0.9 * radius:
+            radius = min(2.0 * radius, MAX_RADIUS)
+        return TrialStep(trial, trial_merits, trial_phi, radius)
+    return TrialStep(None, trial_merits, trial_phi, 0.25 * min(radius, longest))
 
 
 @dataclass
@@ -402,23 +449,19 @@ class EpigraphSQP:
             if best.kkt <= KKT_TOLERANCE or longest <= STEP_TOLERANCE or predicted <= 0.0:
                 best.converged = best.kkt <= KKT_TOLERANCE or longest <= STEP_TOLERANCE
                 break
-            trial = current.copy()
-            trial[1:] += delta
-            trial = project_path(trial, problem.lower, problem.upper, problem.step)
-            _, trial_merits, trial_phi = self.evaluate(trial)
-            ratio = (phi - trial_phi) / predicted
-            if ratio > 0.1 and trial_phi < phi:
-                current, merits, phi = trial, trial_merits, trial_phi
-                top = float(np.max(merits))
-                if top < best.merit:
-                    best.path, best.merit = current, top
-                merit_y = y[: layout.merit_rows].reshape(self.blocks, layout.parts)
-                multipliers = np.maximum(merit_y, 0.0)
-                if ratio > 0.75 and longest > 0.9 * radius:
-                    radius = min(2.0 * radius, MAX_RADIUS)
-                linear = None
-            else:
-                radius = 0.25 * min(radius, longest)
+            step = trust_region_trial(
+                problem, self.evaluate, current, delta, phi, predicted, radius
+            )
+            radius = step.radius
+            if step.path is None:
                 if radius < MIN_RADIUS:
                     break
+                continue
+            current, merits, phi = step.path, step.merits, step.phi
+            top = float(np.max(merits))
+            if top < best.merit:
+                best.path, best.merit = current, top
+            merit_y = y[: layout.merit_rows].reshape(self.blocks, layout.parts)
+            multipliers = np.maximum(merit_y, 0.0)
+            linear = None
         return best

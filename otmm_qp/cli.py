@@ -2,9 +2,9 @@
 
 A thin dispatcher over the modules of :mod:`otmm_qp.commands` (one per command, listed in
 :data:`COMMAND_MODULES`; a command with subcommands, like ``study``, lists its own). Bad input
-of any kind — a bad argument too — prints one line ``otmm-qp: error: ...`` and exits with
-status 2; results already computed are written before the error is reported. SIGTERM is
-handled like SIGINT (exit 130).
+of any kind — a bad argument too — prints one line ``otmm-qp: error: ...`` of at most 200
+characters (details, if any, on the lines after it) and exits with status 2; results already
+computed are written before the error is reported. SIGTERM is handled like SIGINT (exit 130).
 """
 
 from __future__ import annotations
@@ -21,15 +21,15 @@ from otmm_qp.blas_threads import prefer_single_threaded_blas
 
 prefer_single_threaded_blas()  # before anything imports NumPy (see otmm_qp.blas_threads)
 
-from otmm_qp.exceptions import OtmmError, one_line  # noqa: E402
+from otmm_qp.exceptions import FIRST_LINE_LIMIT, OtmmError, error_lines  # noqa: E402
 from otmm_qp.runner import interrupt  # noqa: E402
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 #: Subcommand modules in ``otmm_qp.commands``, imported by name (a new command: one entry).
 COMMAND_MODULES = ("run", "list", "report", "bench", "study", "replay", "pareto", "migrate", "init")
-#: Longest argument value quoted in an error line [characters].
-MAX_ERROR_LINE = 300
+#: Longest error line of a bad argument, ``otmm-qp: error: `` included [characters].
+MAX_ERROR_LINE = FIRST_LINE_LIMIT
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -37,11 +37,11 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         """Print the one line (cut to :data:`MAX_ERROR_LINE`) and exit 2."""
-        text = " ".join(message.split())
+        command = self.prog.removeprefix("otmm-qp").strip()
+        text = f"otmm-qp: error: {command + ': ' if command else ''}{' '.join(message.split())}"
         if len(text) > MAX_ERROR_LINE:
             text = text[: MAX_ERROR_LINE - 1] + "…"
-        command = self.prog.removeprefix("otmm-qp").strip()
-        print(f"otmm-qp: error: {command + ': ' if command else ''}{text}", file=sys.stderr)
+        print(text, file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT)
 
 
@@ -84,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 interrupt.check()  # a stop request Python swallowed still counts
             return status
     except OtmmError as error:
-        print(f"otmm-qp: error: {one_line(str(error))}", file=sys.stderr)
+        print("\n".join(error_lines(error)), file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("otmm-qp: interrupted", file=sys.stderr)

@@ -42,8 +42,45 @@ def one_line(message: str) -> str:
     return " ".join(w if len(w) <= WORD_LIMIT else f"{w[:head]}...{w[-tail:]}" for w in words)
 
 
+#: Longest first line of an error as the CLI prints it, ``otmm-qp: error: `` included
+#: [characters]: what, where and the command that fixes it; details follow on their own lines.
+FIRST_LINE_LIMIT = 200
+
+
 class OtmmError(Exception):
-    """Root of all otmm-qp errors."""
+    """Root of all otmm-qp errors.
+
+    Attributes:
+        details: Lines printed after the error's first line (one per key, say); empty for
+            most errors.
+    """
+
+    details: tuple[str, ...] = ()
+
+    @property
+    def summary(self) -> str:
+        """The first line: what, where and what fixes it (``str(self)`` without details)."""
+        return str(self)
+
+
+def error_lines(error: BaseException, prefix: str = "otmm-qp: error: ") -> list[str]:
+    """An error as the CLI prints it: a short first line, then its details, one per line.
+
+    The first line has at most :data:`FIRST_LINE_LIMIT` characters, ``prefix`` included: the
+    error's summary made one line (:func:`one_line`); a summary too long for it is broken at a
+    space and goes on in indented lines, so nothing is lost.
+    """
+    summary = error.summary if isinstance(error, OtmmError) else str(error)
+    head = prefix + one_line(summary)
+    lines: list[str] = []
+    while len(head) > FIRST_LINE_LIMIT:
+        cut = head.rfind(" ", len(prefix) + 1 if not lines else 5, FIRST_LINE_LIMIT)
+        cut = cut if cut > 0 else FIRST_LINE_LIMIT
+        lines.append(head[:cut])
+        head = "    " + head[cut:].lstrip()
+    lines.append(head)
+    details = error.details if isinstance(error, OtmmError) else ()
+    return lines + [f"  {one_line(line)}" for line in details]
 
 
 class ConfigError(OtmmError):
@@ -51,13 +88,22 @@ class ConfigError(OtmmError):
 
     Attributes:
         field: Dotted path of the offending field, e.g. ``experiments.0.dt``.
-        message: What is wrong and what is allowed.
+        message: What is wrong and what is allowed (one line).
+        details: Lines after it, e.g. one per key of an older schema (``str(error)`` has them
+            on their own lines).
     """
 
-    def __init__(self, field: str, message: str) -> None:
+    def __init__(self, field: str, message: str, details: Sequence[str] = ()) -> None:
         self.field = field
         self.message = message
-        super().__init__(f"{field}: {message}" if field else message)
+        self.details = tuple(details)
+        self._summary = f"{field}: {message}" if field else message
+        super().__init__("\n  ".join((self._summary, *self.details)))
+
+    @property
+    def summary(self) -> str:
+        """``field: message``, the first line."""
+        return self._summary
 
 
 class ParameterError(ConfigError):

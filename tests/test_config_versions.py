@@ -19,7 +19,7 @@ from otmm_qp.cli import main
 from otmm_qp.config.load import load_config, parse_config
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION
-from otmm_qp.migration.versions import check_schema, inferred_version, migrate
+from otmm_qp.migration.versions import check_schema, migrate, read_schema
 from otmm_qp.studies.spec import load_study, parse_study
 
 DATA = Path(__file__).parent / "data"
@@ -65,7 +65,7 @@ def test_shipped_run_config_runs_identically_after_migrate(name: str, tmp_path: 
     """Refused without ``version`` where a meaning changed; migrated, the 5638e52 numbers."""
     original = SNAPSHOT / name
     if name in CHANGED_MEANING:
-        with pytest.raises(ConfigError, match="add version: 2 to keep today's meaning"):
+        with pytest.raises(ConfigError, match="states no version and 1 key.*fix: add version: 2"):
             load_config(original)
     else:
         load_config(original)
@@ -145,8 +145,11 @@ OLD_RUN = {
 def test_refusal_lists_every_older_key_with_the_users_values() -> None:
     with pytest.raises(ConfigError) as info:
         check_schema(OLD_RUN, "old.yaml")
-    message = str(info.value)
-    assert "\n" not in message and message.startswith("old.yaml: 6 key(s) from an older schema")
+    summary, message = info.value.summary, str(info.value)
+    assert summary == "old.yaml: 6 key(s) from an older schema; fix: otmm-qp migrate old.yaml"
+    reading = "read as schema 1 (otmm-qp 0.1.0): experiments.0.controllers.0.backend.limit_gain"
+    assert info.value.details[0] == f"{reading} exists only in schema 1"
+    assert len(info.value.details) == 1 + 6  # the reading, one line per key
     controllers = "experiments.0.controllers"
     for key, value, sqrt in (("0", "2.5e-05", "0.005"), ("1", "4e-06", "0.002")):
         assert f"{controllers}.{key}.backend.damping: {value} meant μ" in message
@@ -165,8 +168,15 @@ def test_stated_version_decides_what_damping_means() -> None:
     experiment = qp_only["experiments"][0]
     experiment["trajectory"]["profile"] = "quintic"
     experiment["controllers"] = [{"name": "qp", "backend": {"type": "qp", "damping": 0.01}}]
+    # profile exists only in schema 2: read as schema 2, but it must say so (version: 2)
+    with pytest.raises(ConfigError, match=r"^f: states no version.*fix: add version: 2") as info:
+        check_schema(qp_only, "f")
+    assert "backend.damping: 0.01 means λ" in info.value.details[1]
+    assert info.value.details[1].endswith("if so, otmm-qp migrate f --from 1)")
+    del experiment["trajectory"]["profile"]  # now nothing tells: read as schema 1, as migrate
     with pytest.raises(ConfigError, match="damping: 0.01 meant μ"):
         check_schema(qp_only, "f")
+    experiment["trajectory"]["profile"] = "quintic"
     check_schema({**qp_only, "version": 2}, "f")  # schema 2: λ, nothing to refuse
     with pytest.raises(ConfigError, match=r"backend\.damping: 0\.01 meant μ"):
         check_schema({**qp_only, "version": 1}, "f")
@@ -215,23 +225,32 @@ def test_migrated_qp_damping_is_the_same_mu(damping: float) -> None:
     assert math.isclose(other.formulation.mu, damping, rel_tol=1e-12)
 
 
-def test_inferred_version_reads_keys_schema_1_did_not_have() -> None:
+def test_read_schema_reads_keys_that_exist_in_one_schema_only() -> None:
     newer = json.loads(json.dumps(OLD_RUN))
     newer["experiments"][0]["controllers"][1]["backend"] = {"type": "pink", "regularization": 1.0}
-    version, reason = inferred_version(newer)
-    assert version == 2 and "controllers.1.backend.regularization" in reason
-    assert inferred_version(OLD_RUN)[0] == 1
-    assert inferred_version({"generators": []})[0] == 2
+    with pytest.raises(ConfigError, match=r"cannot tell its schema.*--from 1 \(or --from 2\)"):
+        read_schema(newer, "f")  # limit_gain is schema 1's, regularization schema 2's
+    assert read_schema(newer, "f", from_version=1).version == 1
+    del newer["experiments"][0]["controllers"][0]["backend"]["limit_gain"]
+    version, reason, told = read_schema(newer, "f")
+    assert (version, told) == (2, True) and "controllers.1.backend.regularization" in reason
+    assert read_schema(OLD_RUN, "f")[::2] == (1, True)  # limit_gain: schema 1's
+    plain = json.loads(json.dumps(OLD_RUN))
+    del plain["experiments"][0]["controllers"][0]["backend"]["limit_gain"]
+    assert read_schema(plain, "f")[::2] == (1, False)  # nothing says: as run reads it
+    assert read_schema({"generators": []}, "f")[0] == 2
 
 
 def test_migrate_cli_prints_what_it_changed(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    source = tmp_path / "old.yaml"
+    monkeypatch.chdir(tmp_path)
+    source = Path("old.yaml")
     source.write_text(yaml.safe_dump(OLD_RUN))
     assert main(["run", str(source), "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "otmm-qp migrate" in err
+    first, *details = capsys.readouterr().err.strip().splitlines()
+    assert len(first) <= 200 and first.endswith(f"fix: otmm-qp migrate {source}")
+    assert len(details) == 7 and all(line.startswith("  ") for line in details)
     assert main(["migrate", str(source)]) == 0
     captured = capsys.readouterr()
     assert "read as schema 1" in captured.err

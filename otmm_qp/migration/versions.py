@@ -35,7 +35,8 @@ __all__ = [
     "check_schema",
     "file_version",
     "gone_keys",
-    "inferred_version",
+    "read_schema",
+    "schema_evidence",
     "migrate",
     "plugin_blocks",
     "versioned",
@@ -224,8 +225,122 @@ def _pending(data: Any, version: int) -> list[tuple[SchemaChange, Found]]:
     return pending
 
 
+class Reading(NamedTuple):
+    """The schema a file is read in, and why.
+
+    Attributes:
+        version: The schema.
+        reason: Why (its ``version``, ``--from``, a key that exists only in that schema, …).
+        told: Whether something in the file or the command says so (False: nothing does, and
+            the file is read in the oldest schema its kind can be in, as ``run`` refuses it).
+    """
+
+    version: int
+    reason: str
+    told: bool
+
+
+#: :data:`_SCHEMA_1_KEYS` as frozen sets, by record level.
+_SCHEMA_1 = {level: frozenset(keys) for level, keys in _SCHEMA_1_KEYS.items()}
+
+
+def schema_evidence(data: Mapping[str, Any]) -> dict[int, list[str]]:
+    """The keys of a run file that exist in only one schema: ``{1: [...], 2: [...]}``.
+
+    Record keys and the keys of every plugin block otmm-qp ships
+    (:mod:`otmm_qp.migration.evidence`); a plugin type it does not ship says nothing.
+    """
+    from otmm_qp.migration import evidence
+
+    found: dict[int, list[str]] = {1: [], 2: []}
+
+    def add(more: dict[int, list[str]]) -> None:
+        for version, paths in more.items():
+            found[version] += paths
+
+    add(evidence.record_evidence("file", data, "", _SCHEMA_1["file"]))
+    for i, experiment in enumerate(data.get("experiments") or []):
+        if not isinstance(experiment, Mapping):
+            continue
+        where = f"experiments.{i}"
+        add(evidence.record_evidence("experiments", experiment, where, _SCHEMA_1["experiments"]))
+        for j, controller in enumerate(experiment.get("controllers") or []):
+            if isinstance(controller, Mapping):
+                at = f"{where}.controllers.{j}"
+                add(
+                    evidence.record_evidence(
+                        "controllers", controller, at, _SCHEMA_1["controllers"]
+                    )
+                )
+    for block in plugin_blocks(data):
+        plugins = _SCHEMA_1_PLUGINS.get(block.group, {})
+        add(evidence.block_evidence(block.group, block.block, block.path, plugins))
+    return found
+
+
+def _meaning_changed(data: Any, version: int) -> list[tuple[SchemaChange, Found]]:
+    """The value changes after ``version`` concerning the file's blocks."""
+    return [(change, found) for change, found in _pending(data, version) if change.kind == "value"]
+
+
+def read_schema(
+    data: Mapping[str, Any], source: str, first_version: int = 1, from_version: int | None = None
+) -> Reading:
+    """The schema to read a file in: its ``version``, else ``from_version``, else inferred.
+
+    Inferred from the keys that exist in only one schema (:func:`schema_evidence`), never
+    from a plugin type otmm-qp does not ship; with none, the oldest schema the file's kind
+    can be in (``first_version``: run files 1, study files 2), which is how ``run`` reads
+    a key whose meaning changed. Keys of both schemas in a file where a key's meaning depends
+    on which is ambiguous and refused, naming ``--from``; where no key's meaning depends on
+    it, the file is the same in either.
+
+    Raises:
+        ConfigError: An invalid ``version``, ``from_version`` contradicting it, or an
+            ambiguous file (naming ``otmm-qp migrate FILE --from N``).
+    """
+    stated = file_version(data, source)
+    if stated is not None and from_version is not None and stated != from_version:
+        raise ConfigError(
+            f"{source}: {VERSION_KEY}", f"the file says {stated}, --from says {from_version}"
+        )
+    if stated is not None:
+        return Reading(stated, "its version", True)
+    if from_version is not None:
+        return Reading(from_version, "--from", True)
+    if first_version >= CURRENT_VERSION or "generators" in data:
+        return Reading(CURRENT_VERSION, "a study file (studies came in schema 2)", True)
+    found = schema_evidence(data)
+    old, new = found[1], found[2]
+    if old and new:
+        if not _meaning_changed(data, first_version):
+            same = "no key whose meaning changed: the file is the same in schema 1 and 2"
+            return Reading(CURRENT_VERSION, same, True)
+        name = source
+        raise ConfigError(
+            name,
+            f"cannot tell its schema (it has keys of schema 1 and of 2, and one whose meaning "
+            f"depends on which); fix: otmm-qp migrate {name} --from 1 (or --from 2)",
+            [f"only in schema 1: {', '.join(old)}", f"only in schema 2: {', '.join(new)}"],
+        )
+    if new:
+        return Reading(2, f"{new[0]} exists only in schema 2", True)
+    if old:
+        return Reading(1, f"{old[0]} exists only in schema 1", True)
+    return Reading(
+        first_version,
+        "no key tells its schema, so the oldest, as run reads it (--from 2 if written for 0.2)",
+        False,
+    )
+
+
 def check_schema(data: Any, source: str, first_version: int = 1) -> None:
     """Refuse a file with a key that is gone or whose meaning changed since its version.
+
+    The file is read as :func:`read_schema` reads it, as ``otmm-qp migrate`` does: the keys
+    listed are the ones ``migrate`` rewrites. A file that states no version but whose keys say
+    schema 2 is still refused when one of its keys changed meaning: it must say so
+    (``version: 2``); nothing runs on an inference.
 
     Args:
         data: The parsed YAML (anything: only mappings are inspected).
@@ -234,8 +349,9 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
             (run files 1, study files 2).
 
     Raises:
-        ConfigError: One line listing every such key of the file with its own value, what
-            it meant, what it means now and what to write, and the ``migrate`` command.
+        ConfigError: A first line naming the file and the command that fixes it, then one
+            line saying which schema it was read in and one per key with its own value, what
+            it meant, what it means now and what to write.
     """
     if not isinstance(data, dict):
         return
@@ -246,65 +362,36 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
             f"this kind of file starts at schema {first_version} "
             f"({RELEASES[first_version]}), got {stated}",
         )
-    version = first_version if stated is None else stated
-    pending = _pending(data, version)
-    if not pending:
+    reading = read_schema(data, source, first_version)
+    pending = _pending(data, reading.version)
+    kept = [] if stated is not None else _meaning_changed(data, first_version)
+    kept = [item for item in kept if item not in pending]
+    if not pending and not kept:
         return
-    parts = "; ".join(
+    name = source  # the CLI cuts a long one (one_line)
+    details = [f"read as schema {reading.version} ({RELEASES[reading.version]}): {reading.reason}"]
+    details += [
         f"{found.path}.{change.key}: {_explained(change, found.block)}" for change, found in pending
-    )
-    if stated is None and any(change.kind == "value" for change, _ in pending):
-        hint = f"add version: {CURRENT_VERSION} to keep today's meaning"
+    ]
+    details += [
+        f"{found.path}.{change.key}: {_flow(found.block.get(change.key, '(absent)'))} means "
+        f"{change.now} (in schema {change.version - 1} it meant {change.was}: if so, "
+        f"otmm-qp migrate {name} --from {change.version - 1})"
+        for change, found in kept
+    ]
+    if pending:
+        if not reading.told and any(change.kind == "value" for change, _ in pending):
+            details.append(
+                f"written for {RELEASES[CURRENT_VERSION]}? add version: {CURRENT_VERSION} "
+                "to keep today's meaning instead"
+            )
+        message = f"{len(pending)} key(s) from an older schema; fix: otmm-qp migrate {name}"
     else:
-        hint = "fix them"
-    raise ConfigError(
-        source,
-        f"{len(pending)} key(s) from an older schema: {parts} ({hint}, or run "
-        f"otmm-qp migrate {shown(source, 80, quote=False)})",
-    )
-
-
-def _newer_than_1(data: Mapping[str, Any]) -> str | None:
-    """The first key or plugin type a schema-1 run file could not have (None: none)."""
-    for key in data:
-        if key not in _SCHEMA_1_KEYS["file"] and key != VERSION_KEY:
-            return str(key)
-    for i, experiment in enumerate(data.get("experiments") or []):
-        if not isinstance(experiment, Mapping):
-            continue
-        for key in experiment:
-            if key not in _SCHEMA_1_KEYS["experiments"]:
-                return f"experiments.{i}.{key}"
-        for j, controller in enumerate(experiment.get("controllers") or []):
-            for key in controller if isinstance(controller, Mapping) else ():
-                if key not in _SCHEMA_1_KEYS["controllers"]:
-                    return f"experiments.{i}.controllers.{j}.{key}"
-    for found in plugin_blocks(data):
-        known = _SCHEMA_1_PLUGINS.get(found.group, {}).get(str(found.block["type"]))
-        if known is None:
-            return f"{found.path}.type: {shown(found.block['type'], quote=False)}"
-        extra = [key for key in found.block if key != "type" and key not in known]
-        if extra:
-            return f"{found.path}.{extra[0]}"
-    return None
-
-
-def inferred_version(data: Mapping[str, Any]) -> tuple[int, str]:
-    """The oldest schema a file without ``version`` can be in, and why.
-
-    A study file is at least schema 2 (studies came in 0.2); a run file is schema 1 unless it
-    uses a key or plugin type schema 1 did not have.
-
-    Returns:
-        ``(version, reason)``, e.g. ``(2, "experiments.0.controllers.3.backend.regularization
-        did not exist in schema 1")``.
-    """
-    if "generators" in data:
-        return 2, "a study file (studies came in schema 2)"
-    newer = _newer_than_1(data)
-    if newer is not None:
-        return 2, f"{newer} did not exist in schema 1"
-    return 1, "every key it uses existed in schema 1 (pass --from 2 if it was written later)"
+        message = (
+            f"states no version and {len(kept)} key(s) changed meaning; fix: add version: "
+            f"{CURRENT_VERSION} (or otmm-qp migrate {name})"
+        )
+    raise ConfigError(name, message, details)
 
 
 class Migration(NamedTuple):
@@ -379,17 +466,7 @@ def migrate(data: Any, source: str, from_version: int | None = None) -> Migratio
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
-    stated = file_version(data, source)
-    if stated is not None and from_version is not None and stated != from_version:
-        raise ConfigError(
-            f"{source}: {VERSION_KEY}", f"the file says {stated}, --from says {from_version}"
-        )
-    if stated is not None:
-        version, reason = stated, "its version"
-    elif from_version is not None:
-        version, reason = from_version, "--from"
-    else:
-        version, reason = inferred_version(data)
+    version, reason, _ = read_schema(data, source, from_version=from_version)
     log: list[str] = []
     body = _walk({k: v for k, v in data.items() if k != VERSION_KEY}, version, "", log)
     return Migration(versioned(body), version, reason, log)

@@ -83,6 +83,15 @@ def error_lines(error: BaseException, prefix: str = "otmm-qp: error: ") -> list[
     return lines + [f"  {one_line(line)}" for line in details]
 
 
+class SchemaChangeWarning(FutureWarning):
+    """A keyword given in Python whose meaning changed between schema versions.
+
+    Warned for one release (e.g. ``QpBackend(damping=...)``: μ in 0.1.0, λ since 0.2), with
+    the value it would have meant and what to write for it; silence it with
+    ``warnings.filterwarnings("ignore", category=SchemaChangeWarning)``.
+    """
+
+
 class ConfigError(OtmmError):
     """A configuration value is malformed, unknown or out of range.
 

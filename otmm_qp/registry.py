@@ -31,6 +31,7 @@ from otmm_qp.exceptions import (
     PluginValidationError,
     shown,
 )
+from otmm_qp.migration.keywords import from_config
 from otmm_qp.migration.versions import gone_keys
 
 ROBOTS = "otmm_qp.robots"
@@ -291,7 +292,8 @@ def create(group: str, name: str, params: Mapping[str, Any], field: str, **frame
     explained = gone_keys(group.rsplit(".", 1)[-1], {**params, "type": name})
     check_parameters(factory, params, field, tuple(framework), explained)
     try:
-        return factory(**framework, **params)
+        with from_config():  # the file's schema is checked: no warning of a changed meaning
+            return factory(**framework, **params)
     except ConfigError as error:
         if error.field.startswith(field):
             raise

@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from otmm_qp.exceptions import InfeasibleProblem, ParameterError, SolverNotFound
+from otmm_qp.migration.keywords import from_config
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.state import KinematicState
@@ -184,7 +185,8 @@ def test_damping_means_lambda_as_in_dls() -> None:
     dls.bind(PANDA, DT)
     expected = dls.solve(state, xdot, np.zeros(7))
     for options in ({"damping": 0.02}, {"regularization": 4e-4}):
-        backend = QpBackend(solver="daqp", **options)  # type: ignore[arg-type]
+        with from_config():  # as from a file stating version: 2 (in Python: a FutureWarning)
+            backend = QpBackend(solver="daqp", **options)  # type: ignore[arg-type]
         backend.bind(PANDA, DT)
         out = backend.solve(state, xdot, np.zeros(7))
         assert out.damping == pytest.approx(expected.damping) == pytest.approx(0.02)

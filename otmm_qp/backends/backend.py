@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import abc
-from typing import TYPE_CHECKING, ClassVar, Final, NamedTuple
+import functools
+import inspect
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar, Final, NamedTuple
 
 import numpy as np
 
 from otmm_qp.exceptions import ParameterError
+from otmm_qp.migration.changes import CHANGES
+from otmm_qp.migration.keywords import check_keywords, warn_changed
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
@@ -108,6 +113,16 @@ class Backend(abc.ABC):
     enforces_limits: bool = False
     robot: Robot
     dt: float
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Give the constructor of a backend the table of changes has rows for its keywords.
+
+        An old keyword raises a ``TypeError`` naming what to write; one whose meaning changed
+        warns (:func:`otmm_qp.migration.keywords.check_keywords`). The signature is kept.
+        """
+        super().__init_subclass__(**kwargs)
+        if cls.name in _CHANGED_BACKENDS and not getattr(cls.__init__, "_checks_keywords", False):
+            cls.__init__ = _checking_keywords(cls.__init__)  # type: ignore[method-assign]
 
     @property
     def preview_horizon(self) -> float | None:
@@ -210,3 +225,29 @@ def truncated_pseudoinverse_apply(
     keep = sigma > cutoff
     coefficients = (xdot @ state.U[:, keep]) / sigma[keep]
     return np.asarray(state.Vt[keep].T @ coefficients, dtype=float)
+
+
+#: The backend types the table of changes has rows for.
+_CHANGED_BACKENDS = frozenset(
+    t for change in CHANGES if change.group == "backends" for t in change.types
+)
+
+
+def _checking_keywords(init: Callable[..., None]) -> Callable[..., None]:
+    """``init`` checking its keywords against the table of changes first (same signature)."""
+    parameters = list(inspect.signature(init).parameters.values())[1:]
+    accepted = frozenset(
+        p.name for p in parameters if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+    )
+    positional = [p.name for p in parameters if p.kind == p.POSITIONAL_OR_KEYWORD]
+
+    @functools.wraps(init)
+    def checked(self: Backend, *args: Any, **kwargs: Any) -> None:
+        given = {**dict(zip(positional, args, strict=False)), **kwargs}
+        kind = type(self)
+        changed = check_keywords("backends", kind.name, kind.__name__, accepted, given)
+        init(self, *args, **kwargs)
+        warn_changed(changed)  # once the values are accepted
+
+    checked._checks_keywords = True  # type: ignore[attr-defined]
+    return checked

@@ -22,6 +22,7 @@ from otmm_qp.output.folders import KIND_NAME, folder_kind
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import EPISODES, read_episodes, read_study
+from tests.cli_errors import refusal_text
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = {
@@ -61,11 +62,10 @@ def _study_file(tmp_path: Path, data: dict, name: str = "study.yaml") -> Path:
 
 def _one_line(capsys: pytest.CaptureFixture[str], *needles: str) -> str:
     err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
+    text = refusal_text(err)
     for needle in needles:
-        assert needle in lines[0], lines[0]
-    return lines[0]
+        assert needle in text, text
+    return text
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ from otmm_qp.replay.frames import plan_frames
 from otmm_qp.replay.planar_animation import TIP_COLOR
 from otmm_qp.replay.robot_model import fit_planar_arm, identify_urdf_arm, load_robot
 from otmm_qp.replay.stored_runs import discover_runs, group_scenarios
+from tests.cli_errors import refusal_text
 
 PLANAR = """
 name: tiny
@@ -248,7 +249,7 @@ def test_unknown_names_are_one_line_errors_listing_what_is_available(
 ) -> None:
     assert main(["replay", str(planar_results), *arguments]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and re.search(message, err), err
+    assert re.search(message, refusal_text(err)), err
     assert not (planar_results / "replays").exists()
 
 
@@ -261,7 +262,7 @@ def test_results_without_time_series_are_a_one_line_error(
     for target in (folder, tmp_path / "missing"):
         assert main(["replay", str(target)]) == 2
         err = capsys.readouterr().err.strip()
-        assert len(err.splitlines()) == 1 and err.startswith("otmm-qp: error: RESULTS_DIR:"), err
+        assert refusal_text(err).startswith("otmm-qp: error: RESULTS_DIR:"), err
 
 
 def test_replays_are_written_only_inside_the_results_folder(

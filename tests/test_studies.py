@@ -20,6 +20,7 @@ from otmm_qp.studies.episodes import TIMING_METRICS
 from otmm_qp.studies.execute import dask_client, run_study
 from otmm_qp.studies.spec import load_study, parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
+from tests.cli_errors import refusal_text
 
 TINY = {
     "name": "tiny",
@@ -195,8 +196,26 @@ def test_bad_study_input_exits_2_with_one_line(
     status = main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1", "--quiet"])
     err = capsys.readouterr().err
     assert status == 2
-    assert err.count("\n") == 1 and err.startswith("otmm-qp: error: ")
-    assert message in err
+    assert message in refusal_text(err)  # a first line of at most 200 characters, details after
+
+
+def test_same_name_of_another_arm_is_another_study(
+    serial_out: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder belongs to one study: the same name on another arm is refused (no run holds
+    the folder's lock any more), a changed setting of the same study is not."""
+    target = tmp_path / "existing"
+    shutil.copytree(serial_out, target)
+    robots = [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.7]}}]
+    other = _write(tmp_path, dict(TINY, robots=robots, generators=TINY["generators"][1:]))
+    args = ["study", str(other), "--out", str(target), "--workers", "1", "--quiet", "--no-report"]
+    assert main(args) == 2
+    text = refusal_text(capsys.readouterr().err)
+    assert "holds another study named 'tiny' (of other robots or another task)" in text
+    assert "--force" in text and len(_rows(target)) == 20  # nothing lost, nothing added
+    assert json.loads((target / "study.json").read_text())["config"]["robots"][0]["robot"][
+        "link_lengths"
+    ] == [1.0, 0.8]
 
 
 def test_other_study_directory_is_refused_unless_forced(

@@ -10,6 +10,7 @@ file ``init`` writes is run with every generator's count set to 1 (the only redu
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 import shlex
@@ -29,6 +30,8 @@ from otmm_qp.robots.urdf_meshes import check_meshes
 from otmm_qp.studies.limit_keeping import limit_breaks
 from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import load_study
+from otmm_qp.studies.storage import StudyDirectoryError, prepare_directory
+from tests.cli_errors import refusal_text
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "your-own-arm.md"
@@ -82,10 +85,7 @@ def urdf_limits(urdf: Path) -> dict[str, tuple[str, float]]:
 
 
 def one_line_error(capsys: pytest.CaptureFixture[str]) -> str:
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("otmm-qp: error: ") and "\n" not in err, err
-    assert "Traceback" not in err
-    return err
+    return refusal_text(capsys.readouterr().err)  # first line <= 200 characters, details after
 
 
 def test_doc_steps_take_a_urdf_package_to_a_verdict(
@@ -353,3 +353,121 @@ def test_bare_command_accepts_run_options(capsys: pytest.CaptureFixture[str]) ->
     """``otmm-qp --force ...`` is ``otmm-qp run --force ...`` (the paper reproduction's options)."""
     assert main(["--force", "--out", ""]) == 2
     assert "--out" in one_line_error(capsys)  # refused by `run`, not an unknown argument
+
+
+def _init(*extra: str) -> list[str]:
+    return [
+        "init",
+        "study",
+        "--urdf",
+        URDF,
+        "--package-dir",
+        ".",
+        "--frame",
+        "j2s6s200_link_6",
+        *extra,
+    ]
+
+
+def _run_line(out: str) -> str:
+    return next(line for line in out.splitlines() if line.startswith("  run: ")).split()[-1]
+
+
+def test_init_keeps_paths_as_given_and_a_folder_belongs_to_one_study(
+    user_package: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Relative paths stay relative; ``--task position`` is another study (name, file, folder);
+    the suggested folder is never another study's, and running into one is refused."""
+    assert main(_init("--budget", "0")) == 0
+    assert _run_line(capsys.readouterr().out) == "results/kinova-study"
+    pose_file = Path("kinova-study.yaml")
+    pose = load_study(pose_file)
+    robot = pose.robots[0].robot.params
+    assert (robot["urdf"], robot["package_dirs"]) == (URDF, ["."])  # as given
+    assert f"urdf: {URDF}" in pose_file.read_text(encoding="utf-8")
+    # the pose study has run: its folder holds its study.json
+    pose_folder = Path("results/kinova-study")
+    prepare_directory(pose_folder, pose.model_dump(mode="json"), force=False)
+    (pose_folder / "study.json").write_text(
+        json.dumps({"study": pose.name, "config": pose.model_dump(mode="json")})
+    )
+    assert main(_init("--budget", "0", "--task", "position")) == 0
+    out = capsys.readouterr().out
+    position = load_study(Path("kinova-position-study.yaml"))
+    assert position.name == "kinova-position" and _run_line(out) == "results/kinova-position-study"
+    # a folder of that name holding another study: the next free one is suggested
+    taken = Path("results/kinova-position-study")
+    taken.mkdir()
+    (taken / "study.json").write_text((pose_folder / "study.json").read_text())
+    assert main(_init("--budget", "0", "--task", "position", "--force")) == 0
+    assert _run_line(capsys.readouterr().out) == "results/kinova-position-study-2"
+    # the position study run into the pose study's folder: refused, study lock or not
+    dumped = position.model_dump(mode="json")
+    with pytest.raises(StudyDirectoryError, match="holds study 'kinova', not 'kinova-position'"):
+        prepare_directory(pose_folder, dumped, force=False)
+    same_name = {**dumped, "name": pose.name}  # renamed by hand: still of another task
+    with pytest.raises(StudyDirectoryError, match="holds another study named 'kinova'"):
+        prepare_directory(pose_folder, same_name, force=False)
+    prepare_directory(pose_folder, {**pose.model_dump(mode="json"), "dt": 0.04}, force=False)
+
+
+ARM_WITHOUT_VELOCITY = """<robot name="a"><link name="base"/><link name="l1"/><link name="tip"/>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="10"VELOCITY/></joint>
+<joint name="j2" type="JOINT2"><parent link="l1"/><child link="tip"/><origin xyz="1 0 0"/>
+<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="2"/></joint></robot>
+"""
+
+
+def _arm(folder: Path, velocity: str = "", joint2: str = "revolute") -> str:
+    text = ARM_WITHOUT_VELOCITY.replace("VELOCITY", velocity).replace("JOINT2", joint2)
+    if joint2 == "fixed":
+        text = text.replace('<joint name="j1" type="revolute">', '<joint name="j1" type="fixed">')
+    (folder / "arm.urdf").write_text(text, encoding="utf-8")
+    return "arm.urdf"
+
+
+@pytest.mark.parametrize(
+    ("velocity", "joint2", "locked", "message"),
+    [
+        ("", "revolute", [], "urdf: cannot parse"),
+        (' velocity="1"', "fixed", [], "arm has no movable joint (every joint is fixed)"),
+        (' velocity="1"', "revolute", ["j1", "j2"], "no movable joint after locking j1, j2"),
+    ],
+)
+def test_init_refuses_an_arm_urdfdom_refuses_or_without_movable_joint(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capfd: pytest.CaptureFixture[str],
+    velocity: str,
+    joint2: str,
+    locked: list[str],
+    message: str,
+) -> None:
+    """One refusal, urdfdom's own lines only as its details (never before it), no file."""
+    monkeypatch.chdir(tmp_path)
+    urdf = _arm(tmp_path, velocity, joint2)
+    lock = ["--locked-joints", *locked] if locked else []
+    assert main(["init", "study", "--urdf", urdf, "--frame", "tip", *lock, "-o", "s.yaml"]) == 2
+    captured = capfd.readouterr()
+    text = refusal_text(captured.err)
+    assert message in text and captured.out == ""
+    if not velocity:  # urdfdom's reason, after the first line
+        assert "  urdfdom: joint [j1]: limit has no velocity" in captured.err.splitlines()
+        assert "at line" not in captured.err
+    assert not (tmp_path / "s.yaml").exists()
+
+
+def test_init_names_a_zero_speed_limit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """``velocity="0"`` means no speed limit: said in the file and in a warning line."""
+    monkeypatch.chdir(tmp_path)
+    urdf = _arm(tmp_path, ' velocity="0"')
+    assert main(["init", "study", "--urdf", urdf, "--frame", "tip", "-o", "s.yaml"]) == 0
+    captured = capfd.readouterr()
+    line = next(ln for ln in Path("s.yaml").read_text().splitlines() if ln.startswith("#   j1:"))
+    assert 'velocity="0" in the URDF means no limit' in line
+    assert "#   j2: [-1, 1] (range), speed 2" in Path("s.yaml").read_text()
+    assert captured.err.startswith('otmm-qp: warning: j1: velocity="0" in the URDF means no')
+    assert load_study(Path("s.yaml")).robots[0].robot.params["urdf"] == "arm.urdf"

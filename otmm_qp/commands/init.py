@@ -17,6 +17,9 @@ import argparse
 import math
 import os
 import re
+import sys
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +44,8 @@ SHARES = (
 )
 #: Largest ``--tasks`` (a study's default ``limits.max_tasks``).
 MAX_TASKS = 100_000
+#: Suggested output folders tried before giving up on a free one.
+MAX_FOLDERS = 100
 
 CONTROLLERS = """\
 controllers:                      # the field's strategies; add your own (otmm-qp list --params)
@@ -98,15 +103,44 @@ def _number(value: float) -> str:
     return f"{value:.4g}"
 
 
-def limit_lines(arm: PinocchioArm) -> list[str]:
-    """One comment line per joint: name, position range, speed limit (as the study reads them)."""
+def zero_speed_joints(urdf: str) -> list[str]:
+    """The joints whose URDF ``<limit>`` says ``velocity="0"`` (read as no speed limit).
+
+    Fixed joints are listed too; the caller keeps the arm's movable ones.
+    """
+    try:
+        root = ET.parse(urdf).getroot()  # noqa: S314 - the file Pinocchio has just loaded
+    except (ET.ParseError, OSError):
+        return []
+    zero = []
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        velocity = None if limit is None else limit.get("velocity")
+        try:
+            if velocity is not None and float(velocity) == 0.0:
+                zero.append(str(joint.get("name")))
+        except ValueError:
+            continue
+    return zero
+
+
+def limit_lines(arm: PinocchioArm, zero_speed: Sequence[str] = ()) -> list[str]:
+    """One comment line per joint: name, position range, speed limit (as the study reads them).
+
+    ``zero_speed``: joints whose URDF says ``velocity="0"``, which means no speed limit.
+    """
     lower, upper = arm.position_limits
     speeds = np.asarray(arm.velocity_limits, dtype=float)
     names = [str(n) for n in arm.model.names[1:]]
     lines = []
     for j, name in enumerate(names):
         kind = "continuous" if math.isinf(lower[j]) and math.isinf(upper[j]) else "range"
-        speed = "no limit in the URDF" if math.isinf(speeds[j]) else f"{speeds[j]:.4g}"
+        if name in zero_speed:
+            speed = 'none: velocity="0" in the URDF means no limit (set velocity_limits)'
+        elif math.isinf(speeds[j]):
+            speed = "no limit in the URDF"
+        else:
+            speed = f"{speeds[j]:.4g}"
         lines.append(
             f"#   {name}: [{_number(lower[j])}, {_number(upper[j])}] ({kind}), speed {speed}"
         )
@@ -127,11 +161,20 @@ def generator_counts(tasks: int) -> list[int]:
     return counts
 
 
-def study_text(arm: PinocchioArm, args: argparse.Namespace, name: str) -> str:
-    """The commented study file for ``arm``."""
-    robot: dict[str, object] = {"type": "pinocchio", "urdf": str(Path(args.urdf).resolve())}
+def study_text(
+    arm: PinocchioArm,
+    args: argparse.Namespace,
+    name: str,
+    zero_speed: Sequence[str] = (),
+    folder: Path | None = None,
+) -> str:
+    """The commented study file for ``arm`` (paths as given: a relative one stays relative).
+
+    ``folder``: the output folder its run line suggests (default :func:`results_folder`).
+    """
+    robot: dict[str, object] = {"type": "pinocchio", "urdf": str(args.urdf)}
     if args.package_dirs:
-        robot["package_dirs"] = [str(Path(d).resolve()) for d in args.package_dirs]
+        robot["package_dirs"] = [str(d) for d in args.package_dirs]
     robot["frame"] = args.frame
     robot["task"] = args.task
     if args.locked_joints:
@@ -149,7 +192,7 @@ def study_text(arm: PinocchioArm, args: argparse.Namespace, name: str) -> str:
         else f"  - {{type: {kind}, count: {count}, {extra}}}  # {what}"
         for (kind, _, what, extra), count in zip(SHARES, counts, strict=True)
     )
-    limits = "\n".join(limit_lines(arm))
+    limits = "\n".join(limit_lines(arm, zero_speed))
     decide = (
         f"decide: {{budget_tasks: {args.budget}, batch: {sum(counts)}}}  # batches until each "
         "kind of task\n#   has a row better than every other on success, or the budget is spent"
@@ -159,7 +202,7 @@ def study_text(arm: PinocchioArm, args: argparse.Namespace, name: str) -> str:
     return f"""\
 # A study of {name} written by `otmm-qp init study` ({arm.nv} joints, frame {arm.frame_name},
 # {args.task} task). Run it, then read the decision per kind of task:
-#   otmm-qp study THIS_FILE --out results/{name}-study
+#   otmm-qp study THIS_FILE --out {folder or results_folder(name)}
 # Joint limits read from the URDF (position [rad or m], speed [rad/s or m/s]); success below
 # judges every joint against its own speed limit, and the qp rows keep both:
 {limits}
@@ -210,24 +253,69 @@ def run(args: argparse.Namespace) -> int:
     for folder in args.package_dirs:
         if not os.path.isdir(folder):
             raise ConfigError("--package-dir", f"not a folder: {folder}")
-    arm = PinocchioArm(
-        urdf=args.urdf,
-        package_dirs=args.package_dirs or None,
-        frame=args.frame,
-        task=args.task,
-        locked_joints=args.locked_joints or None,
-    )
+    from otmm_qp.runner.build import captured_stderr
+
+    with captured_stderr():  # urdfdom's parser lines are dropped when loading fails
+        arm = PinocchioArm(
+            urdf=args.urdf,
+            package_dirs=args.package_dirs or None,
+            frame=args.frame,
+            task=args.task,
+            locked_joints=args.locked_joints or None,
+        )
     name = re.sub(r"[^A-Za-z0-9_.+-]+", "_", arm.name).strip("_") or "arm"  # a study name
+    if args.task != "pose":  # another study of the same arm: another name, file and folder
+        name = f"{name}-{args.task}"
     out = Path(args.out) if args.out else Path(f"{name}-study.yaml")
     if out.exists() and not args.force:
         raise ConfigError("--out", f"{out} exists; give --force to replace it")
     if not out.parent.is_dir():
         raise ConfigError("--out", f"no folder {out.parent}")
-    text = study_text(arm, args, name)
+    movable = {str(n) for n in arm.model.names[1:]}
+    zero_speed = [j for j in zero_speed_joints(arm.urdf_path or args.urdf) if j in movable]
     from otmm_qp.studies.spec import parse_study
 
-    parse_study(yaml.safe_load(text), str(out))  # the file must be a valid study
+    study = parse_study(yaml.safe_load(study_text(arm, args, name, zero_speed)), str(out))
+    folder = free_folder(study.model_dump(mode="json"))
+    text = study_text(arm, args, name, zero_speed, folder)
     atomic_write_text(out, text)
     print(f"{out}: a study of {name} ({arm.nv} joints, {args.task} task at {args.frame})")
-    print(f"  run: otmm-qp study {out} --out results/{name}-study")
+    print(f"  run: otmm-qp study {out} --out {folder}")
+    if zero_speed:
+        print(
+            f'otmm-qp: warning: {", ".join(zero_speed)}: velocity="0" in the URDF means no speed '
+            "limit (set velocity_limits in the robot block for one)",
+            file=sys.stderr,
+        )
     return 0
+
+
+def results_folder(name: str, number: int = 1) -> Path:
+    """The output folder suggested for study ``name``: ``results/<name>-study[-N]``."""
+    return Path("results") / (f"{name}-study" if number == 1 else f"{name}-study-{number}")
+
+
+def free_folder(config: dict[str, object]) -> Path:
+    """The first suggested folder no other study uses (:func:`results_folder`).
+
+    A folder is free when it does not exist, holds no ``study.json`` and nothing else, or
+    holds this same study (:func:`otmm_qp.studies.storage.other_study`).
+    """
+    from otmm_qp.studies.storage import StudyDirectoryError, other_study, read_marker
+
+    name = str(config["name"])
+    for number in range(1, MAX_FOLDERS + 1):
+        folder = results_folder(name, number)
+        if not folder.exists():
+            return folder
+        if not folder.is_dir():
+            continue
+        try:
+            marker = read_marker(folder)
+            if marker is None and not any(folder.iterdir()):
+                return folder
+        except (StudyDirectoryError, OSError):
+            continue
+        if marker is not None and other_study(marker, config) is None:
+            return folder
+    return results_folder(name, MAX_FOLDERS + 1)

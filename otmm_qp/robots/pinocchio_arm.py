@@ -237,6 +237,12 @@ class PinocchioArm(Robot):
         elif locked_joints is not None:
             locked.update(dict.fromkeys((str(k) for k in locked_joints), None))
         self.model, self.locked_joints = self._reduce(full, locked)
+        if self.model.nv == 0:
+            what = "after locking " + ", ".join(locked) if locked else "(every joint is fixed)"
+            raise RobotLoadError(
+                f"urdf: {source.name} has no movable joint {what}; an arm needs a revolute, "
+                "prismatic or continuous joint"
+            )
         self.data = self.model.createData()
         self._select_frame(frame if frame is not None else source.frame)
         self._check_joint_types()

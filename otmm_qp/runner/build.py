@@ -123,22 +123,44 @@ def check_reachable(robot: Robot, trajectory: Trajectory, duration: float, field
 def captured_stderr() -> Iterator[None]:
     """Collect what C libraries (urdfdom) write to file descriptor 2; replay it on success.
 
-    On failure it is dropped, so the one-line error is the only thing the user sees.
+    On failure it is not printed: the error's first line is the first thing the user sees, and
+    an :class:`~otmm_qp.exceptions.OtmmError` without details gets urdfdom's ``Error:`` lines
+    as its details (``joint [j1]: limit has no velocity``), printed after it.
     """
     sys.stderr.flush()
     saved = os.dup(2)
+    failed: OtmmError | None = None
     with tempfile.TemporaryFile() as sink:
         os.dup2(sink.fileno(), 2)
         try:
             yield
+        except OtmmError as error:
+            failed = error
+            raise
         finally:
             sys.stderr.flush()
             os.dup2(saved, 2)
             os.close(saved)
-        sink.seek(0)
-        text = sink.read()
+            sink.seek(0)
+            text = sink.read()
+            if failed is not None and not failed.details:
+                failed.details = parser_errors(text.decode("utf-8", "replace"))
     if text:
         sys.stderr.write(text.decode("utf-8", "replace"))
+
+
+#: Most parser lines kept as an error's details.
+MAX_PARSER_LINES = 5
+
+
+def parser_errors(text: str) -> tuple[str, ...]:
+    """The ``Error:`` lines urdfdom wrote in ``text`` (its ``at line N in FILE`` lines dropped)."""
+    found = [
+        "urdfdom: " + " ".join(line.split()[1:])
+        for line in text.splitlines()
+        if line.startswith("Error:") and line.split()[1:]
+    ]
+    return tuple(found[:MAX_PARSER_LINES])
 
 
 def load_robot(spec: PluginConfig, field: str) -> Robot:

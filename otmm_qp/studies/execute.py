@@ -305,8 +305,9 @@ def _run_claimed(
 ) -> StudyOutcome:
     """:func:`run_study` in the claimed (locked) folder ``out``."""
     config = plan.config
-    prepare_directory(out, config.name, force)
-    ident = study_id(config.model_dump(mode="json"))
+    dumped = config.model_dump(mode="json")
+    prepare_directory(out, dumped, force)
+    ident = study_id(dumped)
     keys = {e.key for e in plan.episodes}
     stored = stored_keys(out, ident, keys)
     done = set() if stored.table is None else set(stored.table.column("episode_key").to_pylist())

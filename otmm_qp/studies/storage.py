@@ -25,7 +25,7 @@ import os
 import stat
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -108,11 +108,36 @@ def read_marker(out: Path) -> dict[str, Any] | None:
     return data
 
 
-def prepare_directory(out: Path, study: str, force: bool) -> None:
-    """Check the (claimed) folder ``out`` belongs to ``study``.
+def arms_of(config: Mapping[str, Any]) -> list[Any]:
+    """What a study is of: the ``robot`` block of each of its robots (arm, frame, task)."""
+    robots = config.get("robots")
+    if not isinstance(robots, list):
+        return []
+    return [entry.get("robot") if isinstance(entry, Mapping) else entry for entry in robots]
 
-    With ``force``, everything another study wrote in ``out`` (dataset, marker, report and
-    figures) is removed first.
+
+def other_study(marker: Mapping[str, Any], config: Mapping[str, Any]) -> str | None:
+    """Why the study ``marker`` records is another study than ``config`` (None: the same).
+
+    A study is its name and what it is of (:func:`arms_of`: the same arm with another task
+    is another study); its other settings may change between runs of it (resume keeps the
+    episodes whose keys still match).
+    """
+    name = config.get("name")
+    if marker.get("study") != name:
+        return f"holds study {marker.get('study')!r}, not {name!r}"
+    recorded = marker.get("config")
+    if isinstance(recorded, Mapping) and arms_of(recorded) != arms_of(config):
+        return f"holds another study named {name!r} (of other robots or another task)"
+    return None
+
+
+def prepare_directory(out: Path, config: Mapping[str, Any], force: bool) -> None:
+    """Check the (claimed) folder ``out`` belongs to the study ``config`` (its JSON dump).
+
+    A folder holding another study's ``study.json`` (:func:`other_study`) is refused, whether
+    or not that study's run is still going. With ``force``, everything another study wrote in
+    ``out`` (dataset, marker, report and figures) is removed first.
 
     Raises:
         StudyDirectoryError: ``out`` holds a different study (without ``force``), or an
@@ -135,12 +160,11 @@ def prepare_directory(out: Path, study: str, force: bool) -> None:
         if not force:
             raise
         marker = {}
-    if marker is not None and marker.get("study") != study:
+    reason = None if marker is None else other_study(marker, config)
+    if reason is not None:
         if not force:
             raise StudyDirectoryError(
-                str(out),
-                f"holds study {marker.get('study')!r}, not {study!r}; "
-                "choose another --out or pass --force to replace it",
+                str(out), f"{reason}; choose another --out or pass --force to replace it"
             )
         remove_kind_files(out, "study")
 

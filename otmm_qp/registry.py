@@ -216,8 +216,8 @@ def check_parameters(
     removed = {**(getattr(factory, "removed_parameters", None) or {}), **(explained or {})}
     gone = [key for key in params if key in removed and key not in allowed]
     if gone:  # renamed or removed: say what to write, for every such key at once
-        rest = "".join(f"; {field}.{key}: {removed[key]}" for key in gone[1:])
-        raise ParameterError(f"{field}.{gone[0]}", removed[gone[0]] + rest)
+        rest = [f"{field}.{key}: {removed[key]}" for key in gone[1:]]
+        raise ParameterError(f"{field}.{gone[0]}", removed[gone[0]], rest)
     required = [
         p.name
         for p in signature.parameters.values()

@@ -3,9 +3,11 @@
 Reads ``FILE`` with the hardened reader, rewrites it into the current schema value by value
 (:func:`otmm_qp.migration.versions.migrate`: qp's ``damping: μ`` of schema 1 becomes
 ``regularization: μ``, a pose_circle without ``profile`` gets ``profile: constant``, older limit
-keys become one ``limits`` list, …), prints the schema it read the file in and one line per key
-changed, and writes the result (``version:`` first) to ``OUT``, or to stdout without ``-o``.
-The result is validated before it is written. Comments are not kept.
+keys become one ``limits`` list, …) in the schema its keys say
+(:func:`otmm_qp.migration.versions.read_schema`: never guessed from a plugin type otmm-qp does
+not ship; an ambiguous file is refused, naming ``--from N``), prints the schema it read the file
+in and one line per key changed, and writes the result (``version:`` first) to ``OUT``, or to
+stdout without ``-o``. The result is validated before it is written. Comments are not kept.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="N",
         help="the schema the file is written in when it states no version "
-        f"(1: {RELEASES[1]}; default: the oldest that has every key it uses)",
+        f"(1: {RELEASES[1]}; default: the one its keys say, else 1, as run reads it)",
     )
 
 

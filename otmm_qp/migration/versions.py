@@ -11,13 +11,15 @@ Every run and study file may state ``version: N`` (the schema it is written in; 
   without ``profile``) is refused where the file does not state a version at least the
   change's: a file without ``version`` could be of any schema from the first one its kind
   existed in (run files: 1, study files: 2, studies came in 0.2);
-- all of them at once, on one line, each with the file's own value, what it meant, what it
-  means now and what to write.
+- all of them at once: a first line naming the file and the command that fixes it, then one
+  line per key with the file's own value, what it meant, what it means now and what to write.
 
 :func:`migrate` rewrites an older file into the current schema value by value (the
-converters of the table) and says what it changed; the schema it reads the file in is its
-``version``, else the one given, else the oldest schema that has every key and plugin type the
-file uses (:func:`inferred_version`).
+converters of the table) and says what it changed. Both read the file in the schema
+:func:`read_schema` gives: its ``version``, else the one given (``--from``), else the one its
+keys say — a key that exists in only one schema (:func:`schema_evidence`), never a plugin type
+otmm-qp does not ship — else the oldest; keys of both schemas where a key's meaning depends on
+which is refused, naming ``--from``. So every key ``run`` refuses is one ``migrate`` rewrites.
 """
 
 from __future__ import annotations
@@ -362,6 +364,8 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
             f"this kind of file starts at schema {first_version} "
             f"({RELEASES[first_version]}), got {stated}",
         )
+    if not _pending(data, first_version if stated is None else stated):
+        return  # nothing changed for any schema the file can be in
     reading = read_schema(data, source, first_version)
     pending = _pending(data, reading.version)
     kept = [] if stated is not None else _meaning_changed(data, first_version)

@@ -21,6 +21,7 @@ from otmm_qp.plants import DelayPlant, LagPlant, build_plant
 from otmm_qp.plants.mujoco_plant import MujocoPlant
 from otmm_qp.plants.presets import PRESETS
 from otmm_qp.plants.rate_limit import RateLimitPlant
+from tests.cli_errors import refusal_text
 
 
 def test_presets_expand_to_their_documented_stages() -> None:
@@ -120,5 +121,4 @@ def test_bad_input_is_one_line_exit_2_before_compute(
 ) -> None:
     code, err = _run(tmp_path, capsys, **edits)
     assert code == 2
-    assert err.startswith("otmm-qp: error: ") and err.count("\n") == 1
-    assert expected in err
+    assert expected in refusal_text(err)  # first line <= 200 characters, details after

@@ -11,6 +11,7 @@ from otmm_qp.cli import main
 from otmm_qp.studies import decide as decide_module
 from otmm_qp.studies.decide import DecideRule, Decision, decided, run_decided, split
 from otmm_qp.studies.storage import read_episodes
+from tests.cli_errors import refusal_text
 
 
 def _row(name: str, index: int, success: bool) -> dict[str, Any]:
@@ -166,5 +167,5 @@ def test_bad_decide_blocks_are_one_line_before_compute(
     out = tmp_path / "out"
     assert main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("otmm-qp: error: ") and "\n" not in err and message in err, err
+    assert message in refusal_text(err), err  # first line <= 200 characters, details after
     assert not out.exists()

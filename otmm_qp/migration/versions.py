@@ -318,11 +318,10 @@ def read_schema(
         if not _meaning_changed(data, first_version):
             same = "no key whose meaning changed: the file is the same in schema 1 and 2"
             return Reading(CURRENT_VERSION, same, True)
-        name = source
         raise ConfigError(
-            name,
+            source,
             f"cannot tell its schema (it has keys of schema 1 and of 2, and one whose meaning "
-            f"depends on which); fix: otmm-qp migrate {name} --from 1 (or --from 2)",
+            f"depends on which); fix: otmm-qp migrate {source} --from 1 (or --from 2)",
             [f"only in schema 1: {', '.join(old)}", f"only in schema 2: {', '.join(new)}"],
         )
     if new:
@@ -372,7 +371,7 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
     kept = [item for item in kept if item not in pending]
     if not pending and not kept:
         return
-    name = source  # the CLI cuts a long one (one_line)
+    name = source  # whole (the CLI's one_line cuts a very long one)
     details = [f"read as schema {reading.version} ({RELEASES[reading.version]}): {reading.reason}"]
     details += [
         f"{found.path}.{change.key}: {_explained(change, found.block)}" for change, found in pending

@@ -6,10 +6,21 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from scipy.integrate import quad
+from scipy.stats import beta
 
 from otmm_qp.cli import main
 from otmm_qp.studies import decide as decide_module
-from otmm_qp.studies.decide import DecideRule, Decision, decided, run_decided, split
+from otmm_qp.studies.decide import (
+    BatchStatus,
+    DecideRule,
+    Decision,
+    decided,
+    run_decided,
+    split,
+)
+from otmm_qp.studies.sequential import PRIOR, SequentialVerdict
+from otmm_qp.studies.sequential import pick as sequential_pick
 from otmm_qp.studies.storage import read_episodes
 
 
@@ -25,15 +36,26 @@ def _row(name: str, index: int, success: bool) -> dict[str, Any]:
     }
 
 
+def _quadrature_e(wins: int, discordant: int) -> float:
+    """``E_{A>B}`` by numerical integration of the one-sided Beta mixture (independent)."""
+    a = PRIOR
+
+    def integrand(theta: float) -> float:
+        ratio = theta**wins * (1 - theta) ** (discordant - wins) / 0.5**discordant
+        return 2.0 * ratio * float(beta.pdf(theta, a, a))
+
+    return float(quad(integrand, 0.5, 1.0)[0])
+
+
 def test_decided_needs_a_row_better_than_every_other() -> None:
-    # exact McNemar, 2 rows: all-discordant needs 6 tasks (2/64 = 0.031 < 0.05; 2/32 is not)
-    six = [_row("a", i, True) for i in range(6)] + [_row("b", i, False) for i in range(6)]
-    assert decided(six) == "a"
-    five = [_row("a", i, True) for i in range(5)] + [_row("b", i, False) for i in range(5)]
-    assert decided(five) is None
+    # 2 rows, every task discordant for a: decided at the first n whose e-value reaches 2/α
+    n = next(n for n in range(1, 200) if _quadrature_e(n, n) >= 2 / 0.05)
+    rows = [_row("a", i, True) for i in range(n)] + [_row("b", i, False) for i in range(n)]
+    assert decided(rows) == "a"
+    fewer = [r for r in rows if r["task_index"] < n - 1]
+    assert decided(fewer) is None
     # a third row as good as a: nobody beats every other
-    three = six + [_row("c", i, True) for i in range(6)]
-    assert decided(three) is None
+    assert decided(rows + [_row("c", i, True) for i in range(n)]) is None
 
 
 @pytest.mark.parametrize(
@@ -50,54 +72,75 @@ def test_split_sums_and_follows_the_weights(total: int, weights: list[int]) -> N
         )
 
 
-def _judged(picks_by_batch: list[dict[tuple[str, str], str | None]]) -> Any:
+def _verdict(pick: str | None) -> SequentialVerdict:
+    """qp alone succeeding on 60 tasks (decided) or on 3 (undecided)."""
+    n = 60 if pick else 3
+    return sequential_pick(
+        {"qp": dict.fromkeys(range(n), True), "dls": dict.fromkeys(range(n), False)}
+    )
+
+
+def _judged(picks_by_batch: list[dict[str, str | None]]) -> Any:
     calls = iter(picks_by_batch)
 
     def judge(out: Path, tasks: int, budget: int) -> Decision:
-        return Decision(tasks, budget, next(calls))
+        picks = next(calls)
+        return Decision(tasks, budget, {robot: _verdict(p) for robot, p in picks.items()})
 
     return judge
 
 
-def test_batches_stop_when_every_kind_is_decided(
+class _Config:
+    generators = [type("G", (), {"count": 3})(), type("G", (), {"count": 1})()]
+
+
+def test_batches_stop_when_every_arm_is_decided(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    undecided = {("r", "singular crossings"): None, ("r", "beyond-reach motion"): "qp"}
-    decided_all = {("r", "singular crossings"): "qp", ("r", "beyond-reach motion"): "qp"}
+    undecided = {"r": None, "s": "qp"}
+    decided_all = {"r": "qp", "s": "qp"}
     monkeypatch.setattr(decide_module, "judge", _judged([undecided, decided_all, decided_all]))
     limits: list[list[int]] = []
 
-    class Config:
-        generators = [type("G", (), {"count": 3})(), type("G", (), {"count": 1})()]
-
-    def run_batch(_: Any, batch: int, counts: list[int]) -> bool:
+    def run_batch(_: Any, batch: int, counts: list[int]) -> BatchStatus:
         limits.append(counts)
-        return True
+        return "ok"
 
-    decision = run_decided(Config(), DecideRule(budget_tasks=20, batch=8), tmp_path, run_batch)  # type: ignore[arg-type]
-    assert decision.done and decision.tasks == 16
+    decision = run_decided(_Config(), DecideRule(budget_tasks=20, batch=8), tmp_path, run_batch)  # type: ignore[arg-type]
+    assert decision.done and decision.tasks == 16 and decision.stop == "decided"
     assert limits == [split(8, [3, 1]), split(16, [3, 1])]  # stopped after batch 2 of 3
     text = (tmp_path / "decision.md").read_text(encoding="utf-8")
-    assert "Decided every kind of task after 16 tasks per robot (budget 20)" in text
-    assert "**qp** beats every other row on success" in text
+    assert "Decided after 16 tasks per robot (budget 20)" in text
+    assert "run **qp**" in text and "anytime-valid" in text
 
 
 def test_budget_spent_is_said(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    undecided = {("r", "singular crossings"): None}
-    monkeypatch.setattr(decide_module, "judge", _judged([undecided] * 3))
-
-    class Config:
-        generators = [type("G", (), {"count": 1})()]
-
+    monkeypatch.setattr(decide_module, "judge", _judged([{"r": None}] * 3))
     batches: list[int] = []
-    decision = run_decided(
-        Config(),  # type: ignore[arg-type]
-        DecideRule(budget_tasks=5, batch=2),
-        tmp_path,
-        lambda _, batch, counts: batches.append(counts[0]) is None,
-    )
-    assert batches == [2, 4, 5] and not decision.done
-    assert "Budget spent: 5 of 5 tasks per robot run" in (tmp_path / "decision.md").read_text()
+
+    def run_batch(_: Any, batch: int, counts: list[int]) -> BatchStatus:
+        batches.append(sum(counts))
+        return "ok"
+
+    decision = run_decided(_Config(), DecideRule(budget_tasks=5, batch=2), tmp_path, run_batch)  # type: ignore[arg-type]
+    assert batches == [2, 4, 5] and not decision.done and decision.stop == "budget"
+    text = (tmp_path / "decision.md").read_text()
+    assert "Budget spent: 5 of 5 tasks per robot run" in text and "**" not in text.split("\n")[2]
+
+
+def test_an_interrupt_is_recorded_as_an_interrupt(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(decide_module, "judge", _judged([{"r": None}] * 3))
+    statuses = iter(["ok", "interrupted"])
+
+    def run_batch(_: Any, batch: int, counts: list[int]) -> BatchStatus:
+        return next(statuses)  # type: ignore[return-value]
+
+    decision = run_decided(_Config(), DecideRule(budget_tasks=6, batch=2), tmp_path, run_batch)  # type: ignore[arg-type]
+    text = (tmp_path / "decision.md").read_text()
+    assert decision.stop == "interrupted" and "Interrupted after 2 of 6" in text
+    assert "Budget spent" not in text
 
 
 STUDY = """\
@@ -168,3 +211,65 @@ def test_bad_decide_blocks_are_one_line_before_compute(
     err = capsys.readouterr().err.strip()
     assert err.startswith("otmm-qp: error: ") and "\n" not in err and message in err, err
     assert not out.exists()
+
+
+def _parts(out: Path) -> set[str]:
+    return {p.name for p in (out / "episodes").glob("part-*.parquet")}
+
+
+def _part_keys(out: Path, names: set[str]) -> set[str]:
+    import pyarrow.parquet as pq
+
+    keys: set[str] = set()
+    for name in names:
+        keys.update(pq.read_table(out / "episodes" / name).column("episode_key").to_pylist())
+    return keys
+
+
+def test_raising_the_budget_reruns_no_stored_episode(tmp_path: Path) -> None:
+    config = tmp_path / "d.yaml"
+    out = tmp_path / "out"
+    argv = ["study", str(config), "--out", str(out), "--workers", "1", "--quiet", "--no-report"]
+    config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 2, batch: 2}"))
+    assert main(argv) == 0
+    first = _parts(out)
+    stored = _part_keys(out, first)
+    assert len(stored) == 2 * 3  # 2 tasks x (2 rows + reference)
+    config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 4, batch: 1}"))
+    assert main(argv) == 0
+    new = _parts(out) - first
+    assert first <= _parts(out) and not _part_keys(out, new) & stored  # nothing stored rerun
+    table = read_episodes(out)
+    assert table is not None and len(table) == 4 * 3  # both runs' episodes are the study's
+    assert "of 4 tasks per robot" in (out / "decision.md").read_text()
+    config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 3, batch: 3}"))
+    before = _parts(out)
+    assert main(argv) == 0
+    assert _parts(out) == before  # a lower budget judges the stored prefix, runs nothing
+    assert "3 of 3 tasks per robot" in (out / "decision.md").read_text()
+
+
+def test_a_task_that_cannot_be_generated_is_a_row_and_the_study_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from otmm_qp.scenarios.generator import TaskGenerationError
+    from otmm_qp.studies.task import StudyTask
+
+    build = StudyTask.build
+
+    def flaky(self: StudyTask, config: Any, cache: Any = None) -> Any:
+        if self.index == 1:
+            raise TaskGenerationError("near_singular", "planar2", "no start pose (test)")
+        return build(self, config, cache)
+
+    monkeypatch.setattr(StudyTask, "build", flaky)
+    config = tmp_path / "d.yaml"
+    config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 4, batch: 2}"))
+    out = tmp_path / "out"
+    main(["study", str(config), "--out", str(out), "--workers", "1", "--quiet", "--no-report"])
+    table = read_episodes(out)
+    assert table is not None and len(table) == 4 * 3  # the batch after the failure ran too
+    messages = [m for m in table.column("error_message").to_pylist() if m]
+    assert len(messages) == 3 and all("no start pose (test)" in m for m in messages)  # task 1's rows
+    text = (out / "decision.md").read_text()
+    assert "Budget spent: 4 of 4" in text and "1 task(s) could not be generated" in text

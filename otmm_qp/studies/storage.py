@@ -63,7 +63,19 @@ class StudyDirectoryError(ConfigError):
 
 
 def study_id(config: dict[str, Any]) -> str:
-    """The id of a study: SHA-256 (16 hex digits) of its config's canonical JSON."""
+    """The id of a study: SHA-256 (16 hex digits) of its config's canonical JSON.
+
+    A study that sizes itself (a ``decide`` block) is hashed without that block and without
+    the generators' counts (its budget's split): raising or lowering ``budget_tasks`` or
+    ``batch`` keeps the id, so the stored episodes are resumed (their keys never held the
+    counts). Studies without ``decide`` hash their config whole, as before.
+    """
+    if config.get("decide") is not None:
+        generators = [
+            {k: v for k, v in g.items() if k != "count"} if isinstance(g, dict) else g
+            for g in config.get("generators") or []
+        ]
+        config = {**{k: v for k, v in config.items() if k != "decide"}, "generators": generators}
     text = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 

@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from otmm_qp.output.paths import atomic_write_text
-from otmm_qp.studies import sequential
+from otmm_qp.studies import sequential, verdicts
 from otmm_qp.studies.limit_keeping import limit_breaks
-from otmm_qp.studies.rows import is_reference, task_key, task_of
+from otmm_qp.studies.rows import task_of
 from otmm_qp.studies.schema import DecideRule
 from otmm_qp.studies.sequential import SequentialVerdict
 
@@ -273,11 +273,7 @@ def kind_sentence(kind: str, verdict: SequentialVerdict) -> str:
 
 def success_flags(rows: Sequence[dict[str, Any]]) -> dict[str, dict[tuple[object, ...], bool]]:
     """``controller → {task key → success}`` of the competitor rows, generation failures out."""
-    flags: dict[str, dict[tuple[object, ...], bool]] = {}
-    for row in rows:
-        if not is_reference(row) and not is_generation_failure(row):
-            flags.setdefault(row["controller"], {})[task_key(row)] = bool(row["success"])
-    return flags
+    return verdicts.success_flags([r for r in rows if not is_generation_failure(r)])
 
 
 def judge_rows(rows: Sequence[dict[str, Any]], tasks: int, budget: int) -> Decision:

@@ -1,4 +1,4 @@
-"""``decide: {budget_tasks, batch}``: studies that run batches until each kind is decided."""
+"""``decide: {budget_tasks, batch}``: studies that run batches until the arm is decided."""
 
 from __future__ import annotations
 
@@ -270,6 +270,7 @@ def test_a_task_that_cannot_be_generated_is_a_row_and_the_study_goes_on(
     table = read_episodes(out)
     assert table is not None and len(table) == 4 * 3  # the batch after the failure ran too
     messages = [m for m in table.column("error_message").to_pylist() if m]
-    assert len(messages) == 3 and all("no start pose (test)" in m for m in messages)  # task 1's rows
+    # task 1's rows, each with its reason
+    assert len(messages) == 3 and all("no start pose (test)" in m for m in messages)
     text = (out / "decision.md").read_text()
     assert "Budget spent: 4 of 4" in text and "1 task(s) could not be generated" in text

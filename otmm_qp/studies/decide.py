@@ -160,7 +160,7 @@ class Decision:
         """The decision for ``robot`` in plain words (no bold pick unless decided and kept)."""
         return arm_sentence(
             robot, self.arms[robot], self.limit_breaks.get(robot), self.needed(robot)
-        ) + self.estimate(robot)
+        )
 
     def estimate(self, robot: str, pace: bool = False) -> str:
         """`` Still needed: about N more tasks.`` when undecided (``pace``: and the minutes)."""
@@ -176,7 +176,7 @@ class Decision:
         """The Markdown lines of ``decision.md``."""
         out = [self.head(), ""]
         for robot in sorted(self.arms):
-            out.append(f"- {self.arm_line(robot)}")
+            out.append(f"- {self.arm_line(robot)}{self.estimate(robot)}")
             for (r, kind), verdict in sorted(self.kinds.items()):
                 if r == robot:
                     out.append(f"  - {kind_sentence(kind, verdict)}")
@@ -419,5 +419,5 @@ def run_decided_study(
     total.interrupted = total.interrupted or decision.stop == "interrupted"
     print(decision.head())
     for robot in sorted(decision.arms):
-        print(f"  {decision.arm_line(robot)}".replace("**", ""))
+        print(f"  {decision.arm_line(robot)}{decision.estimate(robot)}".replace("**", ""))
     return total

@@ -126,8 +126,12 @@ def test_pick_reports_the_evidence_of_the_leader() -> None:
     closest = verdict.evidence[0]  # the smallest e-value first: c
     assert (closest.other, closest.leader_only, closest.other_only) == ("c", 20, 0)
     assert closest.beaten and closest.p_anytime < 0.05 and closest.share[0] > 0.5
+    assert verdict.group == ("a",)
     tied = pick({"x": dict.fromkeys(range(5), True), "y": dict.fromkeys(range(5), True)})
-    assert not tied.decided and tied.evidence[0].p_anytime == 1.0
+    assert not tied.decided and tied.evidence[0].p_anytime == 1.0 and tied.group == ()
+    # two rows that differ on one task both beat a third: a group, not a pick
+    pair = pick({"a": flags["a"], "b": {t: t != 3 for t in range(80)}, "c": flags["b"]})
+    assert pair.pick is None and pair.group == ("a", "b")
 
 
 def test_under_equal_rates_the_anytime_rule_keeps_alpha_and_the_former_did_not() -> None:

@@ -249,6 +249,19 @@ def arm_sentence(
     if closest is None:
         return head + f"only {verdict.leader} ran ({rates})."
     lacking = [ev for ev in verdict.evidence if not ev.beaten]
+    if len(verdict.group) > 1:
+        differ = ", ".join(
+            f"{ev.other} on {ev.leader_only + ev.other_only}"
+            for ev in verdict.evidence
+            if ev.other in verdict.group
+        )
+        return head + (
+            f"undecided between {', '.join(verdict.group)}: each beats every other row on "
+            f"success, not each other ({rates}); {verdict.leader} differs from {differ} of "
+            f"{verdict.tasks} tasks. Any of them is a valid choice over the other rows; more "
+            "tasks only choose among them."
+            + (f" About {needed} tasks in all would, if these rates hold." if needed else "")
+        )
     return head + (
         f"undecided — the leader {verdict.leader} does not yet beat "
         + ", ".join(ev.other for ev in lacking)
@@ -263,11 +276,13 @@ def kind_sentence(kind: str, verdict: SequentialVerdict) -> str:
         f"{n} {_pct(verdict.rates[n])}"
         for n in sorted(verdict.rates, key=lambda n: (-verdict.rates[n], n))
     )
-    state = (
-        f"{verdict.pick} beats every other row"
-        if verdict.pick
-        else f"undecided (leader {verdict.leader})"
-    )
+    best = [n for n, r in verdict.rates.items() if r == max(verdict.rates.values(), default=0)]
+    if verdict.pick:
+        state = f"{verdict.pick} beats every other row"
+    elif len(verdict.group) > 1:
+        state = f"{', '.join(verdict.group)} beat every other row, not each other"
+    else:
+        state = "undecided" + (f" (highest rate {best[0]})" if len(best) == 1 else "")
     return f"{kind} ({verdict.tasks} tasks): {state}; {rates}."
 
 

@@ -256,6 +256,9 @@ class SequentialVerdict:
         pick: The row that beats every other (:func:`pick_from_counts`), or None.
         leader: The pick, else the best rate (ties by name); None without rows.
         evidence: The leader against each other row (closest first: smallest e-value).
+        group: The rows no row beats, when each of them beats every row outside it (and some
+            row is outside): the same family of claims as the pick (a row of the group is
+            the pick when it is alone); empty otherwise.
     """
 
     rates: dict[str, float]
@@ -263,6 +266,7 @@ class SequentialVerdict:
     pick: str | None
     leader: str | None
     evidence: tuple[PairEvidence, ...] = ()
+    group: tuple[str, ...] = ()
 
     @property
     def decided(self) -> bool:
@@ -289,6 +293,10 @@ def pick(
     only = discordant_counts(success.reshape(len(common), len(names)))
     winner = pick_from_counts(only, alpha, prior)
     chosen = names[winner] if winner is not None else None
+    beats = log_e_value(only, only + only.T, prior) >= math.log(threshold(len(names), alpha))
+    free = np.asarray(~beats.any(axis=0), dtype=bool)  # rows no row beats
+    separated = free.any() and not free.all() and beats[np.ix_(free, ~free)].all()
+    group = tuple(names[i] for i in np.flatnonzero(free)) if separated else ()
     leader = chosen or max(names, key=lambda n: (rates[n], n))
     i = names.index(leader)
     need = threshold(len(names), alpha)
@@ -305,7 +313,7 @@ def pick(
             )
         )
     evidence.sort(key=lambda ev: (ev.e_value, ev.other))
-    return SequentialVerdict(rates, tasks, chosen, leader, tuple(evidence))
+    return SequentialVerdict(rates, tasks, chosen, leader, tuple(evidence), group)
 
 
 #: Largest study size :func:`tasks_to_decide` searches [tasks].

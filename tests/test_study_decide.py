@@ -274,3 +274,24 @@ def test_a_task_that_cannot_be_generated_is_a_row_and_the_study_goes_on(
     assert len(messages) == 3 and all("no start pose (test)" in m for m in messages)
     text = (out / "decision.md").read_text()
     assert "Budget spent: 4 of 4" in text and "1 task(s) could not be generated" in text
+
+
+def test_a_decide_folder_stored_before_issue_36_is_still_read(tmp_path: Path) -> None:
+    import json
+
+    from otmm_qp.studies.storage import StudyDirectoryError, read_study_folder, study_id
+
+    config = tmp_path / "d.yaml"
+    config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 2, batch: 2}"))
+    out = tmp_path / "out"
+    argv = ["study", str(config), "--out", str(out), "--workers", "1", "--quiet", "--no-report"]
+    assert main(argv) == 0
+    marker = json.loads((out / "study.json").read_text())
+    assert marker["study_id"] != study_id(marker["config"], whole=True)  # the id changed
+    marker["study_id"] = study_id(marker["config"], whole=True)  # as such a folder holds it
+    (out / "study.json").write_text(json.dumps(marker))
+    read_study_folder(out)  # the former id is accepted, an edited config still is not
+    marker["config"]["seed"] = 4
+    (out / "study.json").write_text(json.dumps(marker))
+    with pytest.raises(StudyDirectoryError, match="does not hash to its study_id"):
+        read_study_folder(out)

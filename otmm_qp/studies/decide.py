@@ -154,7 +154,9 @@ class Decision:
         if verdict.decided or not verdict.evidence:
             return None
         counts = [sequential.tasks_to_decide(ev) for ev in verdict.evidence if not ev.beaten]
-        return None if any(c is None for c in counts) else max(c for c in counts if c)
+        return (
+            None if any(c is None for c in counts) else max((c for c in counts if c), default=None)
+        )
 
     def arm_line(self, robot: str) -> str:
         """The decision for ``robot`` in plain words (no bold pick unless decided and kept)."""
@@ -358,7 +360,11 @@ def run_decided(
         previous = min((batch - 1) * rule.batch, rule.budget_tasks)
         decision.seconds_per_task = (time.perf_counter() - tic) / max(tasks - previous, 1)
         undecided = [r for r, v in sorted(decision.arms.items()) if not v.decided]
-        estimate = " ".join(decision.estimate(r, pace=True).strip() for r in undecided)
+        estimate = " ".join(
+            decision.estimate(r, pace=True).strip()
+            or f"{r}: no estimate (a rival level with or ahead of the leader)"
+            for r in undecided
+        )
         print(
             f"batch {batch}: {tasks} tasks per robot; "
             + (f"undecided: {', '.join(undecided)}. {estimate}" if undecided else "decided"),

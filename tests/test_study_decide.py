@@ -72,6 +72,14 @@ def test_split_sums_and_follows_the_weights(total: int, weights: list[int]) -> N
         )
 
 
+@pytest.mark.parametrize("weights", [[100, 200, 150, 50, 70, 30], [3, 1], [5], [1, 1, 1]])
+def test_the_last_batch_runs_the_whole_budget(weights: list[int]) -> None:
+    # the loop's weights are budget_config's counts: the last batch must be all of them
+    for budget in (7, 60, 150, 600):
+        counts = split(budget, weights)
+        assert split(budget, counts) == counts
+
+
 def _verdict(pick: str | None) -> SequentialVerdict:
     """qp alone succeeding on 60 tasks (decided) or on 3 (undecided)."""
     n = 60 if pick else 3

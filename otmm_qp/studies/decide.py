@@ -51,8 +51,11 @@ def split(total: int, weights: list[int]) -> list[int]:
     """``total`` tasks over generators in proportion to ``weights`` (≥ 1 each when it can).
 
     One each first (while ``total`` allows), then the rest by largest remainders; sums to
-    ``total``.
+    ``total``. At ``total = sum(weights)`` the share is ``weights`` itself, so a study's
+    last batch (weights: :func:`budget_config`'s counts) runs every task of its budget.
     """
+    if total == sum(weights):
+        return list(weights)
     base = [1 if i < total else 0 for i in range(len(weights))]
     rest = total - sum(base)
     raw = [w * rest / sum(weights) for w in weights]

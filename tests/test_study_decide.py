@@ -234,7 +234,9 @@ def _part_keys(out: Path, names: set[str]) -> set[str]:
     return keys
 
 
-def test_raising_the_budget_reruns_no_stored_episode(tmp_path: Path) -> None:
+def test_raising_the_budget_reruns_no_stored_episode(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     config = tmp_path / "d.yaml"
     out = tmp_path / "out"
     argv = ["study", str(config), "--out", str(out), "--workers", "1", "--quiet", "--no-report"]
@@ -244,7 +246,9 @@ def test_raising_the_budget_reruns_no_stored_episode(tmp_path: Path) -> None:
     stored = _part_keys(out, first)
     assert len(stored) == 2 * 3  # 2 tasks x (2 rows + reference)
     config.write_text(STUDY.replace("DECIDE", "decide: {budget_tasks: 4, batch: 1}"))
+    capsys.readouterr()
     assert main(argv) == 0
+    assert "6 episodes run (0 failed), 6 already stored, of 12" in capsys.readouterr().out
     new = _parts(out) - first
     assert first <= _parts(out) and not _part_keys(out, new) & stored  # nothing stored rerun
     table = read_episodes(out)
@@ -254,6 +258,7 @@ def test_raising_the_budget_reruns_no_stored_episode(tmp_path: Path) -> None:
     before = _parts(out)
     assert main(argv) == 0
     assert _parts(out) == before  # a lower budget judges the stored prefix, runs nothing
+    assert "0 episodes run (0 failed), 9 already stored, of 9" in capsys.readouterr().out
     assert "3 of 3 tasks per robot" in (out / "decision.md").read_text()
 
 

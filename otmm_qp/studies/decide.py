@@ -429,8 +429,9 @@ def run_decided_study(
                 notices=notices,
             )
             total.total = outcome.total
-            total.skipped_stored += outcome.skipped_stored if batch == 1 else 0
             total.ran += outcome.ran
+            # stored before this run: the batch found them, this run's earlier batches aside
+            total.skipped_stored = outcome.skipped_stored + outcome.ran - total.ran
             total.failed += outcome.failed
             total.steps += outcome.steps
             total.seconds += outcome.seconds

@@ -227,3 +227,22 @@ def test_plants_says_what_it_left_out(
     err = capsys.readouterr().err
     assert "second copies of an episode" in err and "unreadable or non-Parquet parts" in err
     assert plants_alias([str(out), "--reference", "lag"]) == 0
+
+
+def test_plain_progress_prints_a_line_per_tenth_or_minute(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from otmm_qp.commands.study_run import PlainProgress
+
+    now = [0.0]
+    progress = PlainProgress(100)
+    progress.clock = lambda: now[0]
+    progress.shown = (0.0, 0)
+    for _ in range(20):  # 5 episodes a chunk, one second apart
+        now[0] += 1.0
+        progress(5, 1)
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 10 and lines[-1].startswith("100 of 100 episodes (20 failed)")
+    now[0] += 61.0  # a minute without a new tenth still prints
+    progress(0, 0)
+    assert capsys.readouterr().out.startswith("100 of 100 episodes")

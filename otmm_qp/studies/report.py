@@ -33,7 +33,7 @@ from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.columns import KEPT_LIMITS, number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
-from otmm_qp.studies.decide import GUARANTEE, judge_rows
+from otmm_qp.studies.decide import GUARANTEE, judge_rows, kind_sentence
 from otmm_qp.studies.document import Figure, Heading, Item, to_html, to_markdown
 from otmm_qp.studies.formatting import fmt as _fmt
 from otmm_qp.studies.formatting import interval as _interval
@@ -287,6 +287,13 @@ def document(
     for robot in rows.robots():
         lines = [f"- {arm.arm_line(robot)}", *_verdicts(rows, robot)] if robot in arm.arms else []
         out += [Heading(3, f"Verdict on {robot}", box=True), "", *lines, ""]
+    breakdown = [
+        f"- {robot} / {kind_sentence(kind, verdict)}"
+        for (robot, kind), verdict in sorted(arm.kinds.items())
+    ]
+    if breakdown:
+        out += ["By generator (the task mix, known before a task runs; the same test):", ""]
+        out += [*breakdown, ""]
     out += [
         "The first line of each box is the decision for the arm over all its tasks (the "
         "study's task mix). " + GUARANTEE + " The kinds of task "

@@ -122,6 +122,38 @@ def test_batches_stop_when_every_arm_is_decided(
     assert "run **qp**" in text and "anytime-valid" in text
 
 
+def _group() -> SequentialVerdict:
+    """a and b beat c; they differ on one task of 80: a group, not a pick."""
+    a = dict.fromkeys(range(80), True)
+    return sequential_pick({"a": a, "b": {t: t != 3 for t in a}, "c": {t: t < 20 for t in a}})
+
+
+@pytest.mark.parametrize(("budget", "batches"), [(160, 1), (99_999, 3)])
+def test_a_group_the_budget_cannot_split_stops_the_study(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, budget: int, batches: int
+) -> None:
+    def judge(out: Path, tasks: int, total: int) -> Decision:
+        return Decision(tasks, total, {"r": _group()})
+
+    monkeypatch.setattr(decide_module, "judge", judge)
+    ran: list[int] = []
+
+    def run_batch(_: Any, batch: int, counts: list[int]) -> BatchStatus:
+        ran.append(batch)
+        return "ok"
+
+    rule = DecideRule(budget_tasks=budget, batch=budget // 3 if batches == 3 else 80)
+    decision = run_decided(_Config(), rule, tmp_path, run_batch)  # type: ignore[arg-type]
+    needed = decision.needed("r")  # a vs b, 1 to 0 in 80 tasks: about 1,300 tasks to split
+    assert _group().group == ("a", "b") and needed is not None and 160 < needed < 99_999
+    if needed > budget:  # not expected to separate within the budget: stop, name the group
+        assert ran == [1] and decision.stop == "group"
+        text = (tmp_path / "decision.md").read_text()
+        assert "Stopped after 80 tasks" in text and "undecided between a, b" in text
+    else:  # the budget may split them: go on
+        assert len(ran) == batches and decision.stop == "budget"
+
+
 def test_budget_spent_is_said(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(decide_module, "judge", _judged([{"r": None}] * 3))
     batches: list[int] = []

@@ -116,7 +116,8 @@ class Decision:
             (the same test, descriptive: no stopping rule is on it).
         generation_failures: ``robot → tasks its generators could not build``.
         limit_breaks: ``robot → (pick's episodes breaking the arm's limits, its episodes)``.
-        stop: ``"decided"``, ``"budget"`` or ``"interrupted"``.
+        stop: ``"decided"``, ``"group"`` (:meth:`settled` without a pick on some robot),
+            ``"budget"`` or ``"interrupted"``.
         seconds_per_task: Wall time per task per robot of the last batch [s] (the progress
             line's estimate; not in ``decision.md``, which a rerun reproduces).
     """
@@ -135,6 +136,23 @@ class Decision:
         """Every robot has a decided arm verdict."""
         return bool(self.arms) and all(v.decided for v in self.arms.values())
 
+    def settled(self, robot: str) -> bool:
+        """Decided, or a group beats every other row and the budget is not expected to split it.
+
+        The group's claims are the pick's family (anytime-valid); stopping for futility —
+        no estimate, or one past the budget — changes no error rate, only saves tasks.
+        """
+        verdict = self.arms[robot]
+        if verdict.decided:
+            return True
+        needed = self.needed(robot)
+        return len(verdict.group) > 1 and (needed is None or needed > self.budget)
+
+    @property
+    def all_settled(self) -> bool:
+        """Every robot is :meth:`settled`."""
+        return bool(self.arms) and all(self.settled(r) for r in self.arms)
+
     def head(self) -> str:
         """The first line: how the batching stopped."""
         if self.stop == "interrupted":
@@ -144,6 +162,12 @@ class Decision:
             )
         if self.done:
             return f"Decided after {self.tasks} tasks per robot (budget {self.budget})."
+        if self.stop == "group":
+            return (
+                f"Stopped after {self.tasks} tasks per robot (budget {self.budget}): on every "
+                "robot a row, or a group of rows, beats every other row, and the budget is not "
+                "expected to separate the group."
+            )
         return (
             f"Budget spent: {self.tasks} of {self.budget} tasks per robot run; "
             "no decision for "
@@ -342,6 +366,9 @@ def run_decided(
             the batch number from 1); ``"interrupted"`` stops the batching (failed episodes
             do not: they are rows, a task that cannot be generated too).
 
+    Batching also stops when every robot is decided or has a group of rows that each beat
+    every other row and that the budget is not expected to separate (:meth:`Decision.settled`).
+
     Returns:
         The last judgement (also written to ``out/decision.md``).
     """
@@ -374,8 +401,8 @@ def run_decided(
             file=sys.stderr,
             flush=True,
         )
-        if decision.done:
-            decision.stop = "decided"
+        if decision.all_settled:
+            decision.stop = "decided" if decision.done else "group"
             break
     atomic_write_text(out / "decision.md", "# Decision\n\n" + "\n".join(decision.lines()) + "\n")
     return decision

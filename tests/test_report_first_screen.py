@@ -89,7 +89,7 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_study_report_first_screen_shows_the_decision(browser: Page, study: Path) -> None:
     markdown = (study / "study_report.md").read_text(encoding="utf-8")
-    assert markdown.index("## Decision per kind of task") < markdown.index("## Method")
+    assert markdown.index("## Decision for the arm") < markdown.index("## Method")
     browser.open((study / "study_report.html").resolve().as_uri())
     geometry = browser.evaluate(
         "(() => { const box = document.querySelector('.verdict');"

@@ -5,7 +5,7 @@ The arm is loaded first, exactly as the study will load it (``PinocchioArm`` wit
 package, an unknown frame or joint is one line and exit 2 before anything is written. The file
 lists the joint limits read from the URDF (position [rad or m], speed [rad/s or m/s]) in a
 comment, draws batches of ``--tasks`` tasks over the six task generators in the proportions of
-the shipped arms study until every kind of task is decided or ``--budget`` tasks are spent
+the shipped arms study until the arm is decided or ``--budget`` tasks are spent
 (a ``decide`` block, :mod:`otmm_qp.studies.decide`), compares a handful of the field's
 controllers, judges success by the arm's own speed limits, and is checked against the study
 schema before it is written (atomically; an existing file is kept unless ``--force``).
@@ -194,8 +194,9 @@ def study_text(
     )
     limits = "\n".join(limit_lines(arm, zero_speed))
     decide = (
-        f"decide: {{budget_tasks: {args.budget}, batch: {sum(counts)}}}  # batches until each "
-        "kind of task\n#   has a row better than every other on success, or the budget is spent"
+        f"decide: {{budget_tasks: {args.budget}, batch: {sum(counts)}}}  # batches until one row "
+        "beats\n#   every other on success over the task mix (anytime-valid), or the budget is "
+        "spent;\n#   raise budget_tasks and rerun to grow the study (stored episodes are kept)"
         if args.budget
         else "# decide: {budget_tasks: 600, batch: 60}  # instead of one batch: run until decided"
     )

@@ -79,10 +79,26 @@ def run(args: argparse.Namespace) -> int:
         from otmm_qp.studies.decide import run_decided_study
 
         outcome = run_decided_study(
-            plan, config.decide, out, str(args.file), args.workers, args.scheduler, args.force
+            plan,
+            config.decide,
+            out,
+            str(args.file),
+            (args.workers, args.scheduler),
+            args.force,
+            None if args.quiet else PlainProgress(len(plan.episodes)),
         )
     elif args.quiet:
         outcome = run_study(plan, out, str(args.file), args.workers, args.scheduler, args.force)
+    elif not sys.stdout.isatty():  # a file or a pipe: plain lines, not a live bar
+        outcome = run_study(
+            plan,
+            out,
+            str(args.file),
+            args.workers,
+            args.scheduler,
+            args.force,
+            progress=PlainProgress(len(plan.episodes)),
+        )
     else:
         outcome = _run_with_progress(plan, out, args)
     rate = outcome.ran / outcome.seconds if outcome.seconds > 0 else 0.0
@@ -117,6 +133,41 @@ def run(args: argparse.Namespace) -> int:
         )
         return EXIT_BAD_INPUT
     return 0
+
+
+class PlainProgress:
+    """Progress as plain lines on stdout (when it is not a terminal): every 10 % or minute.
+
+    A :data:`~otmm_qp.studies.execute.ProgressHook`: called with the episodes finished and
+    failed in each chunk. ``total`` counts the episodes of the run's plan (a ``decide``
+    study's full budget: a decision stops it earlier).
+    """
+
+    def __init__(self, total: int, every: float = 60.0) -> None:
+        import time
+
+        self.total = max(total, 1)
+        self.every = every
+        self.done = 0
+        self.failed = 0
+        self.clock = time.perf_counter
+        self.start = self.clock()
+        self.shown = (0.0, 0)  # (time, tenths of the total) of the last line
+
+    def __call__(self, done: int, failed: int) -> None:
+        """Count a chunk; print a line past each tenth of the total or after ``every`` s."""
+        self.done += done
+        self.failed += failed
+        now = self.clock()
+        tenth = 10 * self.done // self.total
+        if tenth <= self.shown[1] and now - self.shown[0] < self.every:
+            return
+        self.shown = (now, tenth)
+        elapsed = now - self.start
+        print(
+            f"{self.done} of {self.total} episodes ({self.failed} failed), {elapsed / 60:.1f} min",
+            flush=True,
+        )
 
 
 def _run_with_progress(plan: StudyPlan, out: Path, args: argparse.Namespace) -> StudyOutcome:

@@ -23,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print (or write) the fronts with ``--ours`` placed on them."""
     from otmm_qp.commands.text_output import emit, out_file
+    from otmm_qp.studies.decide import GUARANTEE, judge_rows
     from otmm_qp.studies.group_verdict import kind_fronts, kind_rows, render
     from otmm_qp.studies.rows import load_rows
     from otmm_qp.studies.verdicts import check_highlight, study_fronts
@@ -31,5 +32,8 @@ def run(args: argparse.Namespace) -> int:
     rows = load_rows(args.study)[1]
     check_highlight(rows, args.ours, "--ours")
     fronts = kind_fronts(rows) if args.kinds else study_fronts(rows)
-    emit(render(fronts, args.ours, args.kinds, kind_rows(rows) if args.kinds else None), out)
+    arm = judge_rows(rows.rows, 0, 0)  # the decision decision.md and the report open with
+    head = [f"- {arm.arm_line(robot)}" for robot in rows.robots() if robot in arm.arms]
+    text = render(fronts, args.ours, args.kinds, kind_rows(rows) if args.kinds else None)
+    emit("\n".join(["Decision for the arm:", "", *head, "", GUARANTEE, "", text]), out)
     return 0

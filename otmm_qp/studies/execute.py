@@ -269,6 +269,7 @@ def run_study(
     force: bool = False,
     progress: ProgressHook | None = None,
     client: Any = None,
+    notices: set[str] | None = None,
 ) -> StudyOutcome:
     """Run the episodes of ``plan`` not yet stored in ``out``.
 
@@ -281,6 +282,8 @@ def run_study(
         force: Replace the dataset of another study in ``out``.
         progress: Called with ``(episodes finished now, failures now)`` after each chunk.
         client: An open Dask client to use instead of starting one (benchmarks reuse one).
+        notices: Reasons of "resume ignored" notices printed already in this run (each is
+            printed once; updated).
 
     Returns:
         The outcome; an interrupt (Ctrl-C, SIGTERM) returns with ``interrupted = True``
@@ -291,7 +294,9 @@ def run_study(
     if scheduler is not None and client is None:
         scheduler = probe_scheduler(scheduler, CONNECT_TIMEOUT)  # before the folder is touched
     with claim_folder(out, "study", force):
-        return _run_claimed(plan, out, source, force, client, (workers, scheduler), progress)
+        return _run_claimed(
+            plan, out, source, force, client, (workers, scheduler), progress, notices
+        )
 
 
 def _run_claimed(
@@ -302,6 +307,7 @@ def _run_claimed(
     client: Any,
     where: tuple[int | None, str | None],
     progress: ProgressHook | None,
+    notices: set[str] | None = None,
 ) -> StudyOutcome:
     """:func:`run_study` in the claimed (locked) folder ``out``."""
     config = plan.config
@@ -311,8 +317,12 @@ def _run_claimed(
     keys = {e.key for e in plan.episodes}
     stored = stored_keys(out, ident, keys)
     done = set() if stored.table is None else set(stored.table.column("episode_key").to_pylist())
+    shown = set() if notices is None else notices
     for line in stored.ignored:
-        print(f"otmm-qp: resume ignored {line}", file=sys.stderr)
+        reason = line.split(" ", 1)[-1]  # "<count> <reason>": once per reason
+        if reason not in shown:
+            print(f"otmm-qp: resume ignored {line}", file=sys.stderr)
+        shown.add(reason)
     outcome = StudyOutcome(total=len(plan.episodes), skipped_stored=len(done))
     written: set[str] = set(done)
     tic = time.perf_counter()

@@ -33,6 +33,7 @@ from otmm_qp.output.escape import escape
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.columns import KEPT_LIMITS, number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
+from otmm_qp.studies.decide import GUARANTEE, judge_rows, kind_sentence
 from otmm_qp.studies.document import Figure, Heading, Item, to_html, to_markdown
 from otmm_qp.studies.formatting import fmt as _fmt
 from otmm_qp.studies.formatting import interval as _interval
@@ -45,7 +46,7 @@ from otmm_qp.studies.fronts import (
     summary_table,
     with_information,
 )
-from otmm_qp.studies.limit_keeping import breaks_clause, limits_clause
+from otmm_qp.studies.limit_keeping import breaks_clause, limit_breaks, limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import RELATIVE_ERROR, Rows, is_reference, load_rows, task_of
 from otmm_qp.studies.schema import StudyConfig
@@ -195,7 +196,17 @@ def group_verdict(group: TaskGroup) -> str:
             + "."
         )
     best = str(verdict.pick)
-    text = head + f"pick **{best}** (success {_pct(rates[best])})"
+    broken, runs = limit_breaks(group.rows, best)
+    decided = not verdict.not_separated and verdict.beaten == len(rates) - 1
+    if not decided or 2 * broken > runs:  # bold only a decided pick that keeps the limits
+        text = head + f"leader {best} (success {_pct(rates[best])}; not a decision"
+        text += (
+            f": it breaks the arm's limits on {broken} of {runs} episodes)"
+            if 2 * broken > runs
+            else ": it does not beat every other row)"
+        )
+    else:
+        text = head + f"pick **{best}** (success {_pct(rates[best])})"
     if verdict.not_separated:
         text += "; not separated from it by the paired test: " + ", ".join(
             f"{name} ({_pct(rates[name])})" for name in verdict.not_separated
@@ -271,9 +282,26 @@ def document(
     overview = _overview(config, rows)
     cut = overview.index(_criteria_text(config))
     out: list[Item] = overview[:cut]  # title, description, counts; the answer, the method
-    out += [Heading(2, "Decision per kind of task"), ""]
+    out += [Heading(2, "Decision for the arm"), ""]
+    arm = judge_rows(rows.rows, 0, 0)
     for robot in rows.robots():
-        out += [Heading(3, f"Verdict on {robot}", box=True), "", *_verdicts(rows, robot), ""]
+        lines = [f"- {arm.arm_line(robot)}", *_verdicts(rows, robot)] if robot in arm.arms else []
+        out += [Heading(3, f"Verdict on {robot}", box=True), "", *lines, ""]
+    breakdown = [
+        f"- {robot} / {kind_sentence(kind, verdict)}"
+        for (robot, kind), verdict in sorted(arm.kinds.items())
+    ]
+    if breakdown:
+        out += ["By generator (the task mix, known before a task runs; the same test):", ""]
+        out += [*breakdown, ""]
+    out += [
+        "The first line of each box is the decision for the arm over all its tasks (the "
+        "study's task mix). " + GUARANTEE + " The kinds of task "
+        "beneath are the offline reference's labels, which a controller cannot know online, "
+        "judged by the exact McNemar test (Holm) on the tasks as stored: descriptive, not "
+        "corrected for a study that stopped itself.",
+        "",
+    ]
     out += [Heading(2, "Method"), "", *overview[cut:]]
     out += _fronts_overview(fronts, highlight)
     for robot in rows.robots():

@@ -62,8 +62,21 @@ class StudyDirectoryError(ConfigError):
     """The output directory holds another study, or cannot be written."""
 
 
-def study_id(config: dict[str, Any]) -> str:
-    """The id of a study: SHA-256 (16 hex digits) of its config's canonical JSON."""
+def study_id(config: dict[str, Any], whole: bool = False) -> str:
+    """The id of a study: SHA-256 (16 hex digits) of its config's canonical JSON.
+
+    A study that sizes itself (a ``decide`` block) is hashed without that block and without
+    the generators' counts (its budget's split): raising or lowering ``budget_tasks`` or
+    ``batch`` keeps the id, so the stored episodes are resumed (their keys never held the
+    counts). Studies without ``decide`` hash their config whole, as before; ``whole`` hashes
+    a ``decide`` study whole too (the id such a folder recorded before issue 36).
+    """
+    if config.get("decide") is not None and not whole:
+        generators = [
+            {k: v for k, v in g.items() if k != "count"} if isinstance(g, dict) else g
+            for g in config.get("generators") or []
+        ]
+        config = {**{k: v for k, v in config.items() if k != "decide"}, "generators": generators}
     text = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
@@ -445,7 +458,10 @@ def read_study_folder(out: Path) -> tuple[StudyConfig, StudyData]:
     # The id is the hash of the config as it was written (its stored JSON), not as today's
     # schema re-reads it: a folder written before a field was added still matches, and a
     # value edited by hand does not.
-    if ident is not None and study_id(marker["config"]) != ident:
+    if ident is not None and ident not in (
+        study_id(marker["config"]),
+        study_id(marker["config"], whole=True),  # a decide study stored before issue 36
+    ):
         raise StudyDirectoryError(
             str(out / MARKER),
             f"its config does not hash to its study_id {ident!r:.20} (edited by hand?); "

@@ -77,6 +77,27 @@ def test_verdict_writes_its_file(small_study: Path, tmp_path: Path) -> None:
     assert "dls" in target.read_text()
 
 
+def test_verdict_the_report_and_the_decision_say_the_same_for_the_arm(
+    small_study: Path, tmp_path: Path
+) -> None:
+    from otmm_qp.studies.decide import judge
+
+    target = tmp_path / "verdict.md"
+    assert main(["study", "verdict", str(small_study), "--ours", "dls", "--kinds"] + [
+        "--out", str(target)]) == 0  # fmt: skip
+    decision = judge(small_study, 0, 0)  # what decision.md says of the stored rows
+    lines = [f"- {decision.arm_line(robot)}" for robot in sorted(decision.arms)]
+    text = target.read_text(encoding="utf-8")
+    assert lines and text.startswith("Decision for the arm:")
+    report = tmp_path / "report"
+    shutil.copytree(small_study, report)
+    assert main(["report", str(report)]) == 0
+    markdown = (report / "study_report.md").read_text(encoding="utf-8")
+    for line in lines:
+        assert line in text and line in markdown
+        assert markdown.index(line) < markdown.index("## Method")  # the first screen
+
+
 def test_the_old_entry_point_is_an_alias_with_a_notice(
     small_study: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -206,3 +227,22 @@ def test_plants_says_what_it_left_out(
     err = capsys.readouterr().err
     assert "second copies of an episode" in err and "unreadable or non-Parquet parts" in err
     assert plants_alias([str(out), "--reference", "lag"]) == 0
+
+
+def test_plain_progress_prints_a_line_per_tenth_or_minute(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from otmm_qp.commands.study_run import PlainProgress
+
+    now = [0.0]
+    progress = PlainProgress(100)
+    progress.clock = lambda: now[0]
+    progress.shown = (0.0, 0)
+    for _ in range(20):  # 5 episodes a chunk, one second apart
+        now[0] += 1.0
+        progress(5, 1)
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 10 and lines[-1].startswith("100 of 100 episodes (20 failed)")
+    now[0] += 61.0  # a minute without a new tenth still prints
+    progress(0, 0)
+    assert capsys.readouterr().out.startswith("100 of 100 episodes")

@@ -47,11 +47,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.reference.bound import LowerBound, lower_bound
+from otmm_qp.reference.chain import UnsupportedChain
 from otmm_qp.reference.conic import ConicEpigraph
 from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
+from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
 from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
@@ -67,6 +69,10 @@ SETTLE = 1e-2
 WEIGHT_FLOOR = 1e-6
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
+#: Samples of an undecided task the per-sample branch and bound is tried on.
+SEARCH_SAMPLES = 3
+#: Boxes per sample of that search (a count, so the bound does not depend on the machine).
+SEARCH_BOXES = 6000
 #: Standard deviation of the seeded perturbation starts [rad].
 PERTURBATION = 0.05
 
@@ -154,6 +160,8 @@ def solve_reference(
         message = f"solver failure: {error}"
     best = min(pool, key=lambda entry: entry.merit)
     position, position_lower = _position_optimum(problem, pool, bound, deadline)
+    if best.merit > 1.0 and bound.value <= 1.0:
+        bound = _search_samples(problem, best, bound)
     status: ReferenceStatus = _label(best.merit, bound.value)
     if message is not None and status != "achievable":
         status = "failed"
@@ -169,12 +177,33 @@ def solve_reference(
         kkt=polish.kkt,
         converged=polish.converged,
         iterations=polish.iterations,
+        certificate=bound.certificate,
     )
     result = summarise(
         problem, best.path, task_weight, status, warm_merit, message, best.errors, bracket
     )
     result.seconds = time.perf_counter() - tic
     return result, problem
+
+
+def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) -> LowerBound:
+    """Raise the bound on an undecided task by the per-sample branch and bound.
+
+    Tried on the first ``SEARCH_SAMPLES`` samples where the best path misses a tolerance
+    (the earliest: their speed-reachable boxes are the smallest), ``SEARCH_BOXES`` boxes
+    each, until one certifies ``m_k > 1``.
+    """
+    try:
+        search = SampleSearch(problem)
+    except UnsupportedChain:
+        return bound
+    missed = np.flatnonzero(problem.merits(best.errors) > 1.0)
+    for sample in missed[missed > 0][:SEARCH_SAMPLES]:
+        found = search.bound(int(sample), SEARCH_BOXES)
+        bound = bound.raised(int(sample), found.merit, "search")
+        if bound.value > 1.0:
+            break
+    return bound
 
 
 def _label(upper: float, lower: float) -> ReferenceStatus:

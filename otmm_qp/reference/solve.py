@@ -12,6 +12,9 @@ limit:
 1. **Starts**: per-sample damped IK (:func:`~otmm_qp.reference.warm_start.damped_ik_path`),
    the trajectory's own joint path when it has one, and the *candidates* — joint paths a
    controller ran on the task within every limit (:class:`Candidate`, with their own errors).
+   **Decided first**: when a start (a controller's path included) already meets every
+   tolerance, the task is ``achievable`` and nothing below is solved (its best start is the
+   upper bound).
 2. **Least squares** from the better of the first two: trust-region Newton with OSQP
    (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
    start.
@@ -20,14 +23,18 @@ limit:
    with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
    the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
-   (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
-   half of it for the others; a task already achievable gets the best start only, with
-   half the cap), within the time budget; it stops early once the bracket is closed
-   (``upper − lower ≤ 1e-6 upper``).
+   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.conic.stalled`)
+   or its cap (``polish_iterations`` for the best start, half of it for the others; a task
+   the least squares made achievable gets the best start only, with half the cap), within
+   the time budget; it stops early once the bracket is closed (``upper − lower ≤ 1e-6
+   upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
-   limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
-5. **Position optimum** (the one reference of every claim about *position* error:
-   oracle-relative error, graceful position bound, trade-off): the smallest
+   limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`, raised on an
+   undecided task by the per-sample branch and bound
+   (:class:`~otmm_qp.reference.sample_bound.SampleSearch`) on its first ``SEARCH_SAMPLES``
+   samples the best path misses, ``SEARCH_BOXES`` boxes each.
+5. **Position optimum** (the one reference of claims about *position* error:
+   oracle-relative error, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
    (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
    Position tasks: the same path as the upper bound.
@@ -70,9 +77,9 @@ WEIGHT_FLOOR = 1e-6
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
 #: Samples of an undecided task the per-sample branch and bound is tried on.
-SEARCH_SAMPLES = 3
+SEARCH_SAMPLES = 2
 #: Boxes per sample of that search (a count, so the bound does not depend on the machine).
-SEARCH_BOXES = 6000
+SEARCH_BOXES = 4000
 #: Standard deviation of the seeded perturbation starts [rad].
 PERTURBATION = 0.05
 
@@ -151,7 +158,8 @@ def solve_reference(
     message: str | None = None
     polish = EpigraphOutcome(pool[0].path, pool[0].merit)
     try:
-        if problem.samples > 1:
+        # decided by a known path (a start or a controller's): no solve needs to run
+        if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
             start = min(pool[:2], key=lambda entry: entry.merit)
             _least_squares(problem, start, pool, deadline)
             if min(entry.merit for entry in pool) > SETTLE:

@@ -36,7 +36,8 @@ from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 
 
 def sampled_distances(robot: Robot, count: int, seed: int = 0) -> np.ndarray:
-    """``‖p(q) − b‖`` [m] at ``count`` configurations drawn in the box, corners included."""
+    """``‖p(q) − b‖`` [m] at ``count`` configurations drawn in the box, corners included
+    (``b`` the first joint's origin)."""
     chain = chain_of(robot)
     lower, upper = joint_box(chain, robot)
     rng = np.random.default_rng(seed)
@@ -44,8 +45,30 @@ def sampled_distances(robot: Robot, count: int, seed: int = 0) -> np.ndarray:
     corners = rng.integers(0, 2, (count // 4, chain.size))
     q = np.vstack([q, np.where(corners == 1, upper, lower)])
     p = chain.forward(q)[0][:, : chain.dim]
-    base = np.asarray(certified_reach(robot).base)
+    base = chain.forward(np.zeros((1, chain.size)))[2][0, 0, : chain.dim]
     return np.linalg.norm(p - base, axis=1)
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda", "kinova", "xarm7"])
+def test_chain_kinematics_match_the_robot(name: str) -> None:
+    """The vectorised chain's pose and position Jacobian are the robot's own (Pinocchio),
+    continuous joints (Kinova) included; the levers bound every Jacobian column."""
+    robot = PinocchioArm(name, task="pose")
+    chain = chain_of(robot)
+    rng = np.random.default_rng(7)
+    lower, upper = joint_box(chain, robot)
+    levers = chain.levers(lower, upper)
+    for _ in range(10):
+        q = np.zeros(robot.nv)
+        q[chain.columns] = rng.uniform(lower, upper)
+        x, jacobian = robot.kinematics(robot.configuration(q))
+        p, rotation, origins, omegas = chain.forward(q[chain.columns][None, :])
+        pose = np.asarray(x)
+        assert np.allclose(p[0], pose[:3, 3], atol=1e-12)
+        assert np.allclose(rotation[0], pose[:3, :3], atol=1e-12)
+        columns = chain.jacobian(p, origins, omegas)[0]
+        assert np.allclose(columns.T, np.asarray(jacobian)[:3, chain.columns], atol=1e-12)
+        assert np.all(np.linalg.norm(columns, axis=1) <= levers + 1e-12)
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda", "z1"])
@@ -53,6 +76,7 @@ def test_no_sampled_configuration_is_past_the_certified_reach(name: str) -> None
     """UR5, Panda and the Z1 (no shipped config): dense box samples and the robot's own FK."""
     robot = PinocchioArm(name, task="pose")
     certificate = certified_reach(robot)
+    assert np.allclose(certificate.base, robot._base, atol=0.0)  # b: the first joint's origin
     distances = sampled_distances(robot, 40_000)
     assert np.max(distances) <= certificate.outer
     assert certificate.found <= certificate.outer <= robot.reach  # below the offset sum
@@ -145,7 +169,7 @@ def test_continuous_joints_are_circles() -> None:
     chain = chain_of(robot)
     lower, upper = joint_box(chain, robot)
     assert np.all(np.isfinite(lower)) and np.all(upper - lower <= 2 * math.pi + 1e-12)
-    certificate = search_reach(chain, lower, upper, max_boxes=5_000)  # stopped early: valid
+    certificate = search_reach(chain, lower, upper, max_boxes=2_000)  # stopped early: valid
     assert not certificate.converged
     assert float(np.max(sampled_distances(robot, 8_000))) <= certificate.outer
     assert certificate.outer <= robot.reach * (1 + 1e-8) + 1e-8

@@ -24,7 +24,7 @@ the step gains nothing either: it stops as converged when ``r ≤`` :data:`KKT_T
 the model's predicted decrease is ``≤`` :data:`KKT_TOLERANCE`, or ``‖δ‖_∞ ≤``
 :data:`STEP_TOLERANCE`; otherwise when the model predicts no decrease, at the iteration cap or
 the deadline, or when it stalls (:func:`stalled`: the last accepted steps gain less than a
-thousandth of the merit and could not reach the tolerance within the cap).
+hundredth of the merit and could not reach the tolerance within the cap).
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ from otmm_qp.robots.robot import FloatArray
 #: Accepted steps over which progress is measured for the stall test.
 STALL_WINDOW = 3
 #: Relative gain over that window below which the solve has stalled [-].
-STALL_GAIN = 1e-3
+STALL_GAIN = 1e-2
 
 
 def stalled(history: list[float], remaining: int) -> bool:

@@ -117,8 +117,9 @@ def _pinocchio_reach(robot: Robot) -> Reach:
         certificate = None  # the offset sum stays the bound (documented fallback)
         if _unbounded_prismatic(robot):
             outer = math.inf  # no reach at all (the offset sum reads the URDF's limits)
-    if certificate is not None and np.array_equal(np.asarray(certificate.base), base):
-        outer = min(outer, certificate.outer)
+    if certificate is not None and certificate.outer < outer:
+        # the certificate's own centre (the first joint's origin, as the offset sum's)
+        base, outer = np.array(certificate.base, dtype=np.float64), certificate.outer
     return Reach(base, outer, 0.0, levers, revolute)
 
 

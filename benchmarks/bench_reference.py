@@ -162,10 +162,12 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
       position optimum ``reference.max_error`` [m] of ``other`` are more than :data:`MOVED`
       above the base's (``upper_moved``, ``position_moved``);
     * ``relative_shift``: median and largest ``|Δ oracle-relative error|`` [m] over the
-      controller rows where both are defined (``relative_rows``).
+      controller rows where both are defined (``relative_rows``);
+    * ``unpassed``: per study (``base``, ``other``), tasks no known path passes (neither a
+      controller row nor the oracle row succeeds: the report's bracket table).
     """
     from otmm_qp.studies.rows import Rows, load_rows
-    from otmm_qp.studies.verdicts import accuracy_verdict, task_groups
+    from otmm_qp.studies.verdicts import accuracy_verdict, bracket_summary, task_groups
 
     _, rows_a = load_rows(base)
     _, rows_b = load_rows(other)
@@ -215,6 +217,15 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
             float(oracle_b[t][column]) > (1.0 + MOVED) * float(oracle_a[t][column]) for t in hard
         )
 
+    unpassed = {
+        name: sum(
+            line.unpassed
+            for robot in rows.robots()
+            for line in bracket_summary(rows, robot)
+            if line.kind == "all tasks"
+        )
+        for name, rows in (("base", rows_a), ("other", rows_b))
+    }
     shifts = [
         abs(float(own_b[k]["oracle_relative_error"]) - float(own_a[k]["oracle_relative_error"]))
         for k in keys
@@ -237,6 +248,7 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
         "relative_rows": len(shifts),
         "relative_shift_median": statistics.median(shifts) if shifts else 0.0,
         "relative_shift_max": max(shifts, default=0.0),
+        "unpassed": unpassed,
     }
 
 
@@ -250,7 +262,9 @@ def _print_compare(numbers: dict[str, Any], base: Path) -> None:
           f"> {100 * MOVED:.0f} % higher on {numbers['upper_moved']} / "
           f"{numbers['position_moved']}; |Δ oracle-relative error| median "
           f"{numbers['relative_shift_median']:.3g} m, largest "
-          f"{numbers['relative_shift_max']:.3g} m ({numbers['relative_rows']} rows)")  # fmt: skip
+          f"{numbers['relative_shift_max']:.3g} m ({numbers['relative_rows']} rows); tasks no "
+          f"known path passes: {numbers['unpassed']['base']} (base) / "
+          f"{numbers['unpassed']['other']}")  # fmt: skip
 
 
 def _check_stored(out: Path, count: int, target: Path | None, base: Path | None = None) -> int:

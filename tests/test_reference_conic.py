@@ -158,3 +158,18 @@ def test_a_solve_is_deterministic_and_keeps_the_limits() -> None:
     assert problem.limits.keeps(first.path, problem.errors(first.path))
     start_merit = float(np.max(problem.merits(problem.errors(start))[1:]))
     assert first.merit <= start_merit
+
+
+def test_stall_stops_a_crawl_that_cannot_reach_the_tolerance() -> None:
+    """The stall test: a crawl (gain < 1e-3 of the merit over 3 accepted steps) stops, unless
+    crawling on for the remaining iterations could bring the merit to 1 (a label could move);
+    real progress never stops."""
+    from otmm_qp.reference.conic import STALL_GAIN, STALL_WINDOW, stalled
+
+    crawl = [7.5 - 1e-4 * j for j in range(STALL_WINDOW + 1)]
+    assert stalled(crawl, 10)
+    assert not stalled(crawl[:STALL_WINDOW], 10)  # too few steps to judge
+    progress = [7.5 * (1 - 2 * STALL_GAIN) ** j for j in range(STALL_WINDOW + 1)]
+    assert not stalled(progress, 10)
+    near = [1.002 - 1e-4 * j for j in range(STALL_WINDOW + 1)]  # 1.0017: 1e-4/step x 20 > gap
+    assert stalled(near, 5) and not stalled(near, 20)

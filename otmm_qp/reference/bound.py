@@ -5,8 +5,10 @@ min-max from below (the *lower* end of the reference's bracket; the best path fo
 upper end). Per sample ``k`` with target position ``p*_k``, three position bounds [m]:
 
 * **Outside the reach ball**: every configuration's frame is within ``R`` of the base ``b``
-  (planar arms: the annulus ``r_min ≤ ‖p − b‖ ≤ r_max``; Pinocchio arms: ``R`` the sum of
-  link offsets, :meth:`PinocchioArm._reach_bound`), so ``‖e_pos‖ ≥ ‖p*_k − b‖ − R`` (and
+  (planar arms: the annulus ``r_min ≤ ‖p − b‖ ≤ r_max``; Pinocchio arms: ``R`` the
+  certified reach over the joint box, :func:`~otmm_qp.reference.reach.certified_reach`,
+  or the sum of link offsets, :meth:`PinocchioArm._reach_bound`, where none can be
+  certified; none for an unbounded prismatic joint), so ``‖e_pos‖ ≥ ‖p*_k − b‖ − R`` (and
   ``≥ r_min − ‖p*_k − b‖``).
 * **Too far to travel from q₀ in time**: joint ``i`` moves at most
   ``θ_{k,i} = min(k·s_i, max(u_i − q_{0,i}, q_{0,i} − l_i))`` by sample ``k`` (``s_i =
@@ -32,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.reference.problem import TrackingProblem
+from otmm_qp.reference.reach import DegenerateReach, certified_reach
 from otmm_qp.robots.robot import FloatArray, Robot
 
 #: Relative and absolute room [m or rad] taken off every bound against rounding.
@@ -106,13 +109,30 @@ def _pinocchio_reach(robot: Robot) -> Reach:
         else:
             levers[index] = offset_after + travel_after
             revolute[index] = True
-    return Reach(
-        np.array(robot._base, dtype=np.float64),  # type: ignore[attr-defined]
-        float(robot.reach),  # type: ignore[attr-defined]
-        0.0,
-        levers,
-        revolute,
-    )
+    base = np.array(robot._base, dtype=np.float64)  # type: ignore[attr-defined]
+    outer = float(robot.reach)  # type: ignore[attr-defined]
+    try:
+        certificate = certified_reach(robot)
+    except DegenerateReach:
+        certificate = None  # the offset sum stays the bound (documented fallback)
+        if _unbounded_prismatic(robot):
+            outer = math.inf  # no reach at all (the offset sum reads the URDF's limits)
+    if certificate is not None and certificate.outer < outer:
+        # the certificate's own centre (the first joint's origin, as the offset sum's)
+        base, outer = np.array(certificate.base, dtype=np.float64), certificate.outer
+    return Reach(base, outer, 0.0, levers, revolute)
+
+
+def _unbounded_prismatic(robot: Robot) -> bool:
+    """Whether a prismatic joint of the frame's chain has an infinite position limit."""
+    from otmm_qp.reference.chain import UnsupportedChain, chain_of
+
+    try:
+        chain = chain_of(robot)
+    except UnsupportedChain:
+        return False
+    lower, upper = (np.asarray(v, dtype=float)[chain.columns] for v in robot.position_limits)
+    return bool(np.any(chain.prismatic & ~(np.isfinite(lower) & np.isfinite(upper))))
 
 
 @dataclass(frozen=True)
@@ -123,11 +143,33 @@ class LowerBound:
         position: ``‖e_pos,k‖ ≥ position[k]`` on every path within the limits [m], ``(N,)``.
         orientation: ``‖e_rot,k‖ ≥ orientation[k]`` [rad], ``(N,)`` (zeros: position task).
         merit: ``m_k ≥ merit[k]`` [tolerances], ``(N,)``.
+        kinds: Per sample, which bound gives ``merit[k]``: ``start`` (sample 0), ``reach``,
+            ``travel``, ``turn`` (orientation travel), ``search``
+            (:mod:`~otmm_qp.reference.sample_bound`) or ``none`` (0).
     """
 
     position: FloatArray
     orientation: FloatArray
     merit: FloatArray
+    kinds: tuple[str, ...] = ()
+
+    @property
+    def certificate(self) -> str:
+        """``kind@k`` of the sample that sets :attr:`value` (``none`` when it is 0)."""
+        sample = int(np.argmax(self.merit))
+        if not self.merit[sample] > 0.0 or not self.kinds:
+            return "none"
+        return f"{self.kinds[sample]}@{sample}"
+
+    def raised(self, sample: int, merit: float, kind: str) -> LowerBound:
+        """This bound with ``merit[sample]`` raised to ``merit`` (if higher) by ``kind``."""
+        if not merit > self.merit[sample]:
+            return self
+        merits = self.merit.copy()
+        merits[sample] = merit
+        kinds = list(self.kinds) if self.kinds else ["none"] * merits.size
+        kinds[sample] = kind
+        return LowerBound(self.position, self.orientation, merits, tuple(kinds))
 
     @property
     def value(self) -> float:
@@ -150,6 +192,7 @@ def lower_bound(problem: TrackingProblem) -> LowerBound:
     turn = np.linalg.norm(start[:, 3:], axis=1) if problem.pose else np.zeros(count)
     position = np.zeros(count)
     orientation = np.zeros(count)
+    reach_term = travel_term = np.zeros(count)
     reach = reach_of(robot)
     if reach is not None:
         finite = np.isfinite(problem.step)
@@ -163,9 +206,9 @@ def lower_bound(problem: TrackingProblem) -> LowerBound:
         travel = np.sum(moved, axis=1)  # inf for an unbounded prismatic joint: no bound
         points = _target_positions(problem)
         radius = np.linalg.norm(points - reach.base[None, : points.shape[1]], axis=1)
-        position = np.maximum.reduce(
-            [np.zeros(count), radius - reach.outer, reach.inner - radius, away - travel]
-        )
+        reach_term = np.nan_to_num(np.maximum(radius - reach.outer, reach.inner - radius))
+        travel_term = np.nan_to_num(away - travel, nan=0.0)
+        position = np.maximum.reduce([np.zeros(count), reach_term, travel_term])
         if problem.pose:
             angle = np.sum(
                 np.where(reach.revolute[None, :], np.minimum(theta, math.pi), 0.0), axis=1
@@ -177,12 +220,17 @@ def lower_bound(problem: TrackingProblem) -> LowerBound:
     position = np.maximum(position * (1.0 - ROUNDING) - ROUNDING_FLOOR, 0.0)
     orientation = np.maximum(orientation * (1.0 - ROUNDING) - ROUNDING_FLOOR, 0.0)
     merit = np.zeros(count)
+    kinds = np.where(reach_term >= travel_term, "reach", "travel").astype(object)
     settings = problem.settings
     if settings.position_tolerance is not None:
         merit = np.maximum(merit, position / settings.position_tolerance)
     if problem.pose and settings.orientation_tolerance is not None:
-        merit = np.maximum(merit, orientation / settings.orientation_tolerance)
-    return LowerBound(position, orientation, merit)
+        turning = orientation / settings.orientation_tolerance
+        kinds = np.where(turning > merit, "turn", kinds)
+        merit = np.maximum(merit, turning)
+    kinds[0] = "start"
+    kinds[merit <= 0.0] = "none"
+    return LowerBound(position, orientation, merit, tuple(str(k) for k in kinds))
 
 
 def _target_positions(problem: TrackingProblem) -> FloatArray:

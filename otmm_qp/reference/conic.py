@@ -23,7 +23,8 @@ slacks at that point). Those multipliers are the step's, so they certify ``δ = 
 the step gains nothing either: it stops as converged when ``r ≤`` :data:`KKT_TOLERANCE` *and*
 the model's predicted decrease is ``≤`` :data:`KKT_TOLERANCE`, or ``‖δ‖_∞ ≤``
 :data:`STEP_TOLERANCE`; otherwise when the model predicts no decrease, at the iteration cap or
-the deadline.
+the deadline, or when it stalls (:func:`stalled`: the last accepted steps gain less than a
+hundredth of the merit and could not reach the tolerance within the cap).
 """
 
 from __future__ import annotations
@@ -52,6 +53,27 @@ from otmm_qp.reference.epigraph import (
 from otmm_qp.reference.problem import BIG, TrackingProblem
 from otmm_qp.reference.sqp import SolverFailure
 from otmm_qp.robots.robot import FloatArray
+
+#: Accepted steps over which progress is measured for the stall test.
+STALL_WINDOW = 3
+#: Relative gain over that window below which the solve has stalled [-].
+STALL_GAIN = 1e-2
+
+
+def stalled(history: list[float], remaining: int) -> bool:
+    r"""Whether the solve has stalled: too slow to matter for any verdict.
+
+    With ``m_j`` the merit after the ``j``-th accepted step and ``g`` the gain of the last
+    :data:`STALL_WINDOW` of them: ``g < STALL_GAIN · m`` (a crawl), and crawling on at
+    ``g / STALL_WINDOW`` per iteration for the ``remaining`` iterations cannot bring the
+    merit to 1 (the tolerance: the only level a label depends on). A stalled stop is not
+    converged (its convergence test is stored as it stands).
+    """
+    if len(history) <= STALL_WINDOW:
+        return False
+    merit = history[-1]
+    gain = history[-1 - STALL_WINDOW] - merit
+    return gain < STALL_GAIN * merit and merit - gain / STALL_WINDOW * remaining > 1.0
 
 
 def _settings() -> Any:
@@ -266,6 +288,7 @@ class ConicEpigraph:
         best = EpigraphOutcome(current, top)
         radius = INITIAL_RADIUS
         linear = None
+        history = [top]  # the merit after every accepted step
         while best.iterations < iterations and time.perf_counter() < deadline:
             if linear is None:
                 local, tie, hessians = self._linearise(current)
@@ -301,6 +324,9 @@ class ConicEpigraph:
             if top < best.merit:
                 best.path, best.merit = current, top
             linear = None
+            history.append(best.merit)
+            if stalled(history, iterations - best.iterations):
+                break
         if not math.isfinite(best.merit):
             raise SolverFailure("no finite merit")
         return best

@@ -39,6 +39,7 @@ REFERENCE_COLUMNS: tuple[str, ...] = (
     "reference.kkt_residual",
     "reference.converged",
     "reference.iterations",
+    "reference.certificate",
 )
 
 
@@ -60,6 +61,8 @@ class Bracket:
         kkt: Its KKT residual [tolerances] (NaN: not run).
         converged: It stopped on its convergence test.
         iterations: Its QPs.
+        certificate: Which bound sets ``lower`` and at which sample, ``kind@k``
+            (:attr:`~otmm_qp.reference.bound.LowerBound.certificate`; ``none``: 0).
     """
 
     upper: float
@@ -71,6 +74,7 @@ class Bracket:
     kkt: float = math.nan
     converged: bool = False
     iterations: int = 0
+    certificate: str = "none"
 
 
 @dataclass
@@ -148,6 +152,7 @@ class ReferenceResult:
             "reference.kkt_residual": bracket.kkt,
             "reference.converged": bracket.converged,
             "reference.iterations": bracket.iterations,
+            "reference.certificate": bracket.certificate,
         }
 
 

@@ -12,6 +12,9 @@ limit:
 1. **Starts**: per-sample damped IK (:func:`~otmm_qp.reference.warm_start.damped_ik_path`),
    the trajectory's own joint path when it has one, and the *candidates* — joint paths a
    controller ran on the task within every limit (:class:`Candidate`, with their own errors).
+   **Decided first**: when a start (a controller's path included) already meets every
+   tolerance, the task is ``achievable`` and nothing below is solved (its best start is the
+   upper bound).
 2. **Least squares** from the better of the first two: trust-region Newton with OSQP
    (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
    start.
@@ -20,14 +23,18 @@ limit:
    with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
    the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
-   (step and KKT residual, stored) or its cap (``polish_iterations`` for the best start,
-   half of it for the others; a task already achievable gets the best start only, with
-   half the cap), within the time budget; it stops early once the bracket is closed
-   (``upper − lower ≤ 1e-6 upper``).
+   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.conic.stalled`)
+   or its cap (``polish_iterations`` for the best start, half of it for the others; a task
+   the least squares made achievable gets the best start only, with half the cap), within
+   the time budget; it stops early once the bracket is closed (``upper − lower ≤ 1e-6
+   upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
-   limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`.
-5. **Position optimum** (the one reference of every claim about *position* error:
-   oracle-relative error, graceful position bound, trade-off): the smallest
+   limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`, raised on an
+   undecided task by the per-sample branch and bound
+   (:class:`~otmm_qp.reference.sample_bound.SampleSearch`) on its first ``SEARCH_SAMPLES``
+   samples the best path misses, ``SEARCH_BOXES`` boxes each.
+5. **Position optimum** (the one reference of claims about *position* error:
+   oracle-relative error, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
    (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
    Position tasks: the same path as the upper bound.
@@ -47,11 +54,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from otmm_qp.reference.bound import LowerBound, lower_bound
+from otmm_qp.reference.chain import UnsupportedChain
 from otmm_qp.reference.conic import ConicEpigraph
 from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
+from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
 from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
@@ -67,6 +76,10 @@ SETTLE = 1e-2
 WEIGHT_FLOOR = 1e-6
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
+#: Samples of an undecided task the per-sample branch and bound is tried on.
+SEARCH_SAMPLES = 2
+#: Boxes per sample of that search (a count, so the bound does not depend on the machine).
+SEARCH_BOXES = 4000
 #: Standard deviation of the seeded perturbation starts [rad].
 PERTURBATION = 0.05
 
@@ -145,7 +158,8 @@ def solve_reference(
     message: str | None = None
     polish = EpigraphOutcome(pool[0].path, pool[0].merit)
     try:
-        if problem.samples > 1:
+        # decided by a known path (a start or a controller's): no solve needs to run
+        if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
             start = min(pool[:2], key=lambda entry: entry.merit)
             _least_squares(problem, start, pool, deadline)
             if min(entry.merit for entry in pool) > SETTLE:
@@ -154,6 +168,8 @@ def solve_reference(
         message = f"solver failure: {error}"
     best = min(pool, key=lambda entry: entry.merit)
     position, position_lower = _position_optimum(problem, pool, bound, deadline)
+    if best.merit > 1.0 and bound.value <= 1.0:
+        bound = _search_samples(problem, best, bound)
     status: ReferenceStatus = _label(best.merit, bound.value)
     if message is not None and status != "achievable":
         status = "failed"
@@ -169,12 +185,33 @@ def solve_reference(
         kkt=polish.kkt,
         converged=polish.converged,
         iterations=polish.iterations,
+        certificate=bound.certificate,
     )
     result = summarise(
         problem, best.path, task_weight, status, warm_merit, message, best.errors, bracket
     )
     result.seconds = time.perf_counter() - tic
     return result, problem
+
+
+def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) -> LowerBound:
+    """Raise the bound on an undecided task by the per-sample branch and bound.
+
+    Tried on the first ``SEARCH_SAMPLES`` samples where the best path misses a tolerance
+    (the earliest: their speed-reachable boxes are the smallest), ``SEARCH_BOXES`` boxes
+    each, until one certifies ``m_k > 1``.
+    """
+    try:
+        search = SampleSearch(problem)
+    except UnsupportedChain:
+        return bound
+    missed = np.flatnonzero(problem.merits(best.errors) > 1.0)
+    for sample in missed[missed > 0][:SEARCH_SAMPLES]:
+        found = search.bound(int(sample), SEARCH_BOXES)
+        bound = bound.raised(int(sample), found.merit, "search")
+        if bound.value > 1.0:
+            break
+    return bound
 
 
 def _label(upper: float, lower: float) -> ReferenceStatus:

@@ -108,6 +108,12 @@ _REFERENCE = (
     ("reference.kkt_residual", _F, "KKT residual of the solve's end [tolerances]"),
     ("reference.converged", _B, "whether the solve stopped on its convergence test"),
     ("reference.iterations", _I, "QPs the solve took"),
+    (
+        "reference.certificate",
+        _S,
+        "which bound sets reference.lower at which sample: kind@k "
+        "(reach, travel, turn, start, search; none)",
+    ),
     ("reference.seconds", _F, "wall-clock time of the reference solve [s]"),
 )
 _OUTCOME = (

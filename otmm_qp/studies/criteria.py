@@ -8,9 +8,11 @@ An episode row is judged by one of two readings, chosen per task by the referenc
   [rad];
 * **not achievable** (``reference.achievable`` is false and ``reference.status`` is not
   ``failed``: the reference's label is ``unachievable`` or ``undecided``): *graceful* —
-  ``max_error ≤ f_e · reference.max_error`` (the position-optimal reference; the same for
-  orientation with ``reference.max_orientation_error``, the best path's), back on the path
-  at the end
+  within ``f_e`` of one known path's pair of errors, the reference's best path (so that path
+  itself always passes): ``max_error ≤ f_e · reference.position_error`` and
+  ``max_orientation_error ≤ f_e · reference.max_orientation_error`` (falling back to
+  ``reference.max_error``, the position optimum, for a study stored without
+  ``reference.position_error``), back on the path at the end
   (``final_error ≤ max(max_position_error, f_e · reference.final_error)`` when the
   reference's final error is known) and no chatter
   (:math:`\max_{k \ge 1, j} |\dot q_{k,j} - \dot q_{k-1,j}| / \dot q_{max,j} \le f_c`).
@@ -109,7 +111,9 @@ def _error_causes(row: dict[str, Any], criteria: SuccessCriteria) -> bool:
             number(row, "max_orientation_error"), criteria.max_orientation_error
         )
     factor = criteria.graceful.error_factor
-    reference = number(row, "reference.max_error")
+    reference = number(row, "reference.position_error")
+    if math.isnan(reference):
+        reference = number(row, "reference.max_error")
     orientation = number(row, "reference.max_orientation_error")
     final = number(row, "reference.final_error")
     final_bound = max(criteria.max_position_error or 0.0, factor * final)

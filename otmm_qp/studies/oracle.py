@@ -85,6 +85,7 @@ def failed_columns(message: str) -> dict[str, Any]:
             "reference.achievable": False,
             "reference.converged": False,
             "reference.source": "none",
+            "reference.certificate": "none",
             "reference.iterations": 0,
             "error_message": message,
         }

@@ -154,6 +154,8 @@ class BracketRow:
         counts: ``reference.status`` counts, in :data:`BRACKET_LABELS` order.
         median_gap: Median of ``reference.upper − reference.lower`` [tolerances] (NaN: none).
         p90_gap: Its 90th percentile [tolerances] (NaN: none).
+        unpassed: Tasks no known path passes: neither a controller row nor the reference's
+            own row succeeds.
     """
 
     kind: str
@@ -161,6 +163,7 @@ class BracketRow:
     counts: tuple[int, ...]
     median_gap: float
     p90_gap: float
+    unpassed: int = 0
 
 
 def bracket_summary(rows: Rows, robot: str) -> list[BracketRow]:
@@ -171,7 +174,9 @@ def bracket_summary(rows: Rows, robot: str) -> list[BracketRow]:
     """
     if not rows.has_reference:
         return []
-    oracle = {task_of(r): r for r in rows.select(robot=robot) if is_reference(r)}
+    mine = rows.select(robot=robot)
+    oracle = {task_of(r): r for r in mine if is_reference(r)}
+    passed = {task_of(r) for r in mine if r.get("success")}
     kinds = [(g.label, {task_of(r) for r in g.rows}) for g in task_groups(rows, robot)]
     kinds.append(("all tasks", set(oracle)))
     out = []
@@ -189,7 +194,8 @@ def bracket_summary(rows: Rows, robot: str) -> list[BracketRow]:
             if gaps.size
             else (math.nan, math.nan)
         )
-        out.append(BracketRow(label, len(chosen), counts, median, p90))
+        unpassed = sum(t not in passed for t in tasks if t in oracle)
+        out.append(BracketRow(label, len(chosen), counts, median, p90, unpassed))
     return out
 
 

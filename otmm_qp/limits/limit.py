@@ -91,6 +91,19 @@ class Limit(BaseLimit):
     priority: ClassVar[int] = 1
     #: Whether the box depends on neither θ nor q̇_prev (computed once, at bind).
     static: ClassVar[bool] = False
+    #: Whether a clash with the other boxes relaxes this box within the step (braking first,
+    #: :class:`~otmm_qp.limits.box.LimitBox`) instead of making the step's box empty.
+    soft: ClassVar[bool] = False
+    #: The braking acceleration [rad/s²], shape ``(nv,)``, a soft limit asks the position
+    #: limits to keep a stopping distance for (set at :meth:`bind`; None: none).
+    braking: FloatArray | None = None
+
+    def secondary(self) -> tuple[Box, ...]:
+        """Further boxes of the last :meth:`compute_box`, relaxed after this one (none here)."""
+        return ()
+
+    def brake_with(self, acceleration: FloatArray) -> None:  # noqa: B027 - optional hook
+        """Keep a stopping distance at ``acceleration`` [rad/s²] (nv,) (after :meth:`bind`)."""
 
     @abc.abstractmethod
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:

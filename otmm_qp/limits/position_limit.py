@@ -11,7 +11,46 @@ from otmm_qp.limits.limit import Box, Limit
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.validation import Constraints, Interval, check_params
 
-__all__ = ["PositionLimit"]
+__all__ = ["PositionLimit", "StoppingBound"]
+
+
+class StoppingBound:
+    r"""The fastest command that braking at :math:`a` can still stop within a distance.
+
+    After the command :math:`v` the rest state moves :math:`v\,dt`, then each later command
+    drops by :math:`s = a\,dt`: the travel is at most :math:`v\,dt + v^2/(2a)` (the sum of the
+    steps lies below the integral), so :math:`v \le \beta(D) = -s + \sqrt{s^2 + 2a\max(D,0)}`
+    [rad/s] stops within :math:`D` [rad]; braking at :math:`a` from a :math:`v \le \beta(D)`
+    keeps :math:`v - s \le \beta(D - v\,dt)` (the proof in
+    :mod:`otmm_qp.limits.command_limit`).
+
+    Args:
+        acceleration: :math:`a` > 0 [rad/s²], shape ``(nv,)`` (inf: that joint unbounded).
+        dt: Control period [s].
+    """
+
+    def __init__(self, acceleration: FloatArray, dt: float) -> None:
+        finite = np.isfinite(acceleration)
+        self.step: FloatArray = np.where(finite, acceleration * dt, np.inf)
+        self._s = np.where(finite, acceleration * dt, 0.0)
+        self._s2 = self._s**2
+        self._2a = np.where(finite, 2.0 * acceleration, 0.0)
+        self._free = np.where(finite, 0.0, np.inf)
+        self._bound: FloatArray = np.empty(acceleration.shape)
+
+    def __call__(self, distance: FloatArray) -> FloatArray:
+        r""":math:`\beta(D)` [rad/s] (nv,) of ``distance`` [rad] (nv,) (inf: no limit).
+
+        Written into a scratch array valid until the next call.
+        """
+        bound = self._bound
+        np.maximum(distance, 0.0, out=bound)
+        bound *= self._2a
+        bound += self._s2
+        np.sqrt(bound, out=bound)
+        bound -= self._s
+        bound += self._free
+        return bound
 
 
 class PositionLimit(Limit):
@@ -19,7 +58,10 @@ class PositionLimit(Limit):
 
     .. math:: \frac{g}{dt}(\theta_{min} - \theta) \le \dot q \le \frac{g}{dt}(\theta_{max} - \theta)
 
-    (pink's and mink's ``ConfigurationLimit`` with ``gain = g``). Infinite limits give infinite
+    (pink's and mink's ``ConfigurationLimit`` with ``gain = g``). With a command limit in the
+    same box (:meth:`brake_with`) the stopping distance :class:`StoppingBound` is added on
+    both sides, :math:`-\beta(\theta - \theta_{min}) \le \dot q \le \beta(\theta_{max} -
+    \theta)`. Infinite limits give infinite
     bounds (θ is finite and ``g/dt > 0``: no NaN can arise). Beyond a limit the box excludes
     ``q̇ = 0`` and, relaxed, asks the joint to move back. Priority 1.
 
@@ -46,6 +88,12 @@ class PositionLimit(Limit):
         self._rate = self.gain / dt
         # Row views made once: a per-step (2, nv) − (nv,) broadcast allocates an iterator.
         self._theta_min, self._theta_max = self._theta[0], self._theta[1]
+        self._stop: StoppingBound | None = None
+        self._room: FloatArray = np.empty(nv)
+
+    def brake_with(self, acceleration: FloatArray) -> None:
+        """Add the stopping distance at ``acceleration`` [rad/s²] (nv,) to the box."""
+        self._stop = StoppingBound(acceleration, self.dt)
 
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:
         """``((g/dt)(θ_min − θ), (g/dt)(θ_max − θ))`` [rad/s] into ``out``."""
@@ -54,4 +102,13 @@ class PositionLimit(Limit):
         np.multiply(out.lower, rate, out.lower)
         np.subtract(self._theta_max, theta, out.upper)
         np.multiply(out.upper, rate, out.upper)
+        stop = self._stop
+        if stop is not None:
+            room = self._room
+            np.subtract(self._theta_max, theta, out=room)
+            np.minimum(out.upper, stop(room), out=out.upper)
+            np.subtract(theta, self._theta_min, out=room)
+            bound = stop(room)
+            np.negative(bound, out=bound)
+            np.maximum(out.lower, bound, out=out.lower)
         return out

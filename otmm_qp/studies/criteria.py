@@ -49,7 +49,13 @@ FAILURE_CAUSES: tuple[str, ...] = (
     "blow_up",
     "stuck",
     "chatter",
+    "interface_abort",
     "run_error",
+)
+#: Steps over the interface's thresholds (``interface_abort``, :mod:`otmm_qp.plants.interface`).
+INTERFACE_COLUMNS: tuple[str, ...] = (
+    "command_acceleration_violations",
+    "command_jerk_violations",
 )
 #: Row columns added by :func:`speed_ratios` (rows of :data:`~otmm_qp.metrics.table.STUDY_METRICS`).
 RATIO_COLUMNS: tuple[str, ...] = tuple(
@@ -150,4 +156,6 @@ def failure_causes(row: dict[str, Any], criteria: SuccessCriteria) -> tuple[str,
         number(row, "max_jump_ratio"), criteria.graceful.max_jump_factor
     ):
         causes.append("chatter")
+    if any(int(row.get(name) or 0) > 0 for name in INTERFACE_COLUMNS):
+        causes.append("interface_abort")  # the arm's interface would have aborted the motion
     return tuple(causes)

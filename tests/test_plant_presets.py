@@ -62,6 +62,7 @@ def test_raw_franka_presets_check_the_stream_without_a_rate_limiter(
     assert declared.acceleration == ()  # nothing smooths the stream
     assert declared.interface_acceleration == (acceleration,)
     assert declared.interface_jerk == (jerk,)
+    assert declared.interface_period == 0.001  # the FCI's 1 kHz
     assert declared.delay == 1 and declared.servo_frequency == 100.0
 
 
@@ -133,7 +134,7 @@ def _run(tmp_path: Path, capsys: pytest.CaptureFixture[str], **edits: Any) -> tu
         ({"limits": [{"type": "command", "acceleration": float("nan")}]}, "acceleration"),
         ({"limits": [{"type": "command", "acceleration": 5, "jerk": float("nan")}]}, "jerk"),
         ({"limits": [{"type": "command", "acceleration": [1.0, 2.0, 3.0]}]}, "acceleration"),
-        ({"limits": [{"type": "command"}]}, "declares no interface acceleration limit"),
+        ({"limits": [{"type": "command", "jerk": 100.0}]}, "jerk: needs an acceleration limit"),
         ({"plant": {"type": "interface", "jerk": 5000.0}}, "acceleration"),
         ({"plant": {"type": "interface", "acceleration": 10, "jerk": -1}}, "plant.jerk"),
         ({"plant": {"type": "interface", "acceleration": [1.0, 2.0, 3.0]}}, "acceleration"),

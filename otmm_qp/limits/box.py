@@ -164,7 +164,11 @@ class LimitBox:
         self._sources: tuple[Box, ...] = (combined,) + tuple(
             box for limit, box in self._dynamic if not limit.soft
         )
-        self._soft = tuple((limit, box) for limit, box in self._dynamic if limit.soft)
+        self._soft = tuple(
+            (limit, box)
+            for limit, box in self._dynamic
+            if limit.soft and getattr(limit, "active", True)
+        )
         #: Whether a soft limit is among the limits.
         self.has_soft = bool(self._soft)
 

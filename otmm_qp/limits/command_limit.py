@@ -7,9 +7,12 @@ per joint, with the previous commands :math:`\dot q_{k-1}, \dot q_{k-2}` [rad/s]
 
 .. math::
     A_k:\ |\dot q - \dot q_{k-1}| \le a\,dt,\qquad
-    J_k:\ |\dot q - 2\dot q_{k-1} + \dot q_{k-2}| \le j\,dt^2
+    J_k:\ |\dot q - 2\dot q_{k-1} + \dot q_{k-2}| \le j\,dt\,p
 
-(:math:`a` [rad/s²], :math:`j` [rad/s³]). These boxes are *soft* (:attr:`Limit.soft`): the
+(:math:`a` [rad/s²], :math:`j` [rad/s³], :math:`p = \min(dt, \text{period})` [s] with the
+interface's period the plant declares, else :math:`p = dt`: the jerk an interface faster than
+the controller sees of a linearly interpolated command, :mod:`otmm_qp.plants.interface`).
+These boxes are *soft* (:attr:`Limit.soft`): the
 step's box is composed by :class:`~otmm_qp.limits.box.LimitBox` in the stated order
 
 .. math::
@@ -64,11 +67,13 @@ acceleration box only on the steps where it must. The jerk box holds whenever it
 
 Per-joint limits come from the robot or the preset: ``plant`` (the default) reads what the
 run's plant declares (:class:`~otmm_qp.plants.interface.InterfaceLimits`, the
-``franka_fci_raw`` and ``fr3_fci`` presets).
+``franka_fci_raw`` and ``fr3_fci`` presets); under a plant that declares no threshold the
+``plant`` limit has nothing to keep and adds no box (a study's ``plants`` axis mixes both).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -91,7 +96,8 @@ class CommandLimit(Limit):
 
     Args:
         acceleration: :math:`a` > 0 [rad/s²] (inf: that joint unlimited), a scalar or one per
-            joint, or ``plant``: the interface threshold the plant declares.
+            joint, or ``plant``: the interface threshold the plant declares (none declared:
+            the limit adds no box).
         jerk: :math:`j` > 0 [rad/s³] likewise, ``plant`` (none when the plant declares none),
             or None: no jerk box.
         stopping: Whether the position limits of the same box add the stopping distance at
@@ -127,21 +133,21 @@ class CommandLimit(Limit):
         self.declared = declaration
 
     def limits(self, nv: int) -> tuple[FloatArray, FloatArray | None]:
-        """``(a (nv,) [rad/s²], j (nv,) [rad/s³] or None)`` in force.
+        """``(a (nv,) [rad/s²], j (nv,) [rad/s³] or None)`` in force (inf: none declared).
 
         Raises:
-            ParameterError: ``acceleration: plant`` and the plant declares no threshold.
+            ParameterError: A jerk limit given without an acceleration limit to go with it.
             DimensionError: A value is neither a scalar nor one per joint.
         """
         acceleration = self.acceleration
         if isinstance(acceleration, str):  # FROM_PLANT
-            acceleration = self.declared.interface_acceleration
-            if not acceleration:
+            declared = self.declared.interface_acceleration
+            acceleration = declared or math.inf
+            if not declared and not isinstance(self.jerk, str | None):
                 raise ParameterError(
-                    "acceleration",
-                    "is 'plant' but the plant declares no interface acceleration limit (give "
-                    "one in rad/s², or use a plant with an interface stage, e.g. preset "
-                    "franka_fci_raw)",
+                    "jerk",
+                    "needs an acceleration limit: give acceleration in rad/s² (the plant "
+                    "declares none for acceleration: plant)",
                 )
         jerk = self.jerk
         if isinstance(jerk, str):  # FROM_PLANT
@@ -155,10 +161,13 @@ class CommandLimit(Limit):
         """``a·dt`` [rad/s] and ``j·dt²`` [rad/s] per joint; the history at rest."""
         super().bind(robot, dt)
         a, j = self.limits(robot.nv)
+        #: Whether the limit adds a box (False: ``plant`` and nothing declared).
+        self.active = bool(np.any(np.isfinite(a))) or j is not None
         #: The braking acceleration the position limits use [rad/s²], ``(nv,)``.
-        self.braking: FloatArray | None = a if self.stopping else None
+        self.braking: FloatArray | None = a if self.stopping and self.active else None
         self._step: FloatArray = a * dt
-        self._jerk_step: FloatArray | None = None if j is None else j * dt * dt
+        period = self.declared.interface_period or dt
+        self._jerk_step: FloatArray | None = None if j is None else j * dt * min(dt, period)
         self._older: FloatArray = np.zeros(robot.nv)
         self._jerk = Box(np.empty(robot.nv), np.empty(robot.nv))
         self._started = False

@@ -36,7 +36,9 @@ rest (:math:`\dot q_{-1} = \dot q_{-2} = 0`):
 
 * ``max_command_acceleration``: :math:`\max_{k \ge 0, i} |\dot q_{k,i} - \dot q_{k-1,i}|/dt`
   [rad/s²]; ``max_command_jerk``:
-  :math:`\max_{k \ge 0, i} |\dot q_{k,i} - 2\dot q_{k-1,i} + \dot q_{k-2,i}|/dt^2` [rad/s³];
+  :math:`\max_{k \ge 0, i} |\dot q_{k,i} - 2\dot q_{k-1,i} + \dot q_{k-2,i}|/(dt\,p)`
+  [rad/s³], :math:`p = \min(dt, \text{period})` with the interface's period the plant declares
+  (else :math:`p = dt`): the jerk the interface sees of a linearly interpolated command;
 * ``command_acceleration_violations`` / ``command_jerk_violations``: steps on which some joint
   passes the interface's threshold the plant declares (``RunResult.command_limits``, relative
   tolerance 10⁻⁹); 0 when it declares none.
@@ -164,7 +166,8 @@ def command_metrics(run: RunResult) -> Metrics:
     qdot = np.asarray(run.qdot, dtype=float)
     padded = np.vstack([np.zeros((2, qdot.shape[1])), qdot]) if run.steps else np.zeros((2, 0))
     acceleration = np.abs(np.diff(padded, axis=0)[1:]) / run.dt  # (N, nv), from rest
-    jerk = np.abs(np.diff(padded, n=2, axis=0)) / run.dt**2  # (N, nv)
+    period = min(run.dt, run.command_limits[2] or run.dt)
+    jerk = np.abs(np.diff(padded, n=2, axis=0)) / (run.dt * period)  # (N, nv)
     out["max_command_acceleration"] = _safe_max(acceleration)
     out["max_command_jerk"] = _safe_max(jerk)
     for name, values, limit in (

@@ -53,6 +53,8 @@ class PlantDeclaration(NamedTuple):
             :math:`|\dot q_k - \dot q_{k-1}|/dt` [rad/s²] (:mod:`otmm_qp.plants.interface`):
             empty (none), one value, or one per joint.
         interface_jerk: Its threshold on the commanded jerk [rad/s³], likewise.
+        interface_period: The interface's own period p [s] (0: the control period), which
+            sets the jerk it sees of a command interpolated linearly between control periods.
     """
 
     delay: int = 0
@@ -63,6 +65,7 @@ class PlantDeclaration(NamedTuple):
     acceleration: tuple[float, ...] = ()
     interface_acceleration: tuple[float, ...] = ()
     interface_jerk: tuple[float, ...] = ()
+    interface_period: float = 0.0
 
 
 def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
@@ -76,6 +79,7 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
     lags: list[float] = []
     acceleration: tuple[float, ...] = ()
     interface: list[tuple[float, ...]] = [(), ()]
+    period = 0.0
     for part in parts:
         delay += part.delay
         lags.extend(part.lags)
@@ -87,8 +91,17 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
         for i, value in enumerate((part.interface_acceleration, part.interface_jerk)):
             if value:
                 interface[i] = _stricter(interface[i], value)
+        if part.interface_period > 0.0:
+            period = part.interface_period if period == 0.0 else min(period, part.interface_period)
     return PlantDeclaration(
-        delay, tuple(lags), math.sqrt(variance), quantum, frequency, acceleration, *interface
+        delay,
+        tuple(lags),
+        math.sqrt(variance),
+        quantum,
+        frequency,
+        acceleration,
+        *interface,
+        period,
     )
 
 

@@ -9,9 +9,15 @@ This stage passes every command through unchanged and declares the thresholds
 
 .. math::
     |\dot q_k - \dot q_{k-1}|/dt \le a,\qquad
-    |\dot q_k - 2\dot q_{k-1} + \dot q_{k-2}|/dt^2 \le j
+    |\dot q_k - 2\dot q_{k-1} + \dot q_{k-2}|/(dt\,p) \le j
 
-per joint (:math:`\dot q_{-1} = \dot q_{-2} = 0`: from rest), [rad/s²] and [rad/s³]. The run's
+per joint (:math:`\dot q_{-1} = \dot q_{-2} = 0`: from rest), [rad/s²] and [rad/s³], with
+:math:`p = \min(dt, \text{period})` the interface's own period. A controller slower than the
+interface (the studies' 50 Hz against the FCI's 1 kHz) is taken to interpolate its velocity
+linearly over each control period — the acceleration the interface sees is then constant over
+the period, :math:`\Delta\dot q/dt`, and changes at a period's boundary within one interface
+period, a jerk :math:`\Delta^2\dot q/(dt\,p)`. (Holding the command instead would show the
+interface :math:`\Delta\dot q/p`: no controller at 50 Hz could stay within 7.5 rad/s².) The run's
 metrics count the steps that pass them (``command_acceleration_violations``,
 ``command_jerk_violations``, :mod:`otmm_qp.metrics.metrics`), a study's failure cause
 ``interface_abort`` says the interface would have aborted; a controller's ``command`` limit
@@ -21,6 +27,7 @@ metrics count the steps that pass them (``command_acceleration_violations``,
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
@@ -28,7 +35,13 @@ import numpy as np
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import Plant
 from otmm_qp.robots.robot import FloatArray, Robot
-from otmm_qp.validation import Constraints, check_params, per_joint, positive_per_joint
+from otmm_qp.validation import (
+    Constraints,
+    Interval,
+    check_params,
+    per_joint,
+    positive_per_joint,
+)
 
 __all__ = ["InterfaceLimits"]
 
@@ -40,6 +53,7 @@ class InterfaceLimits(Plant):
         acceleration: :math:`a` > 0 [rad/s²] (inf: that joint unchecked), a scalar or one per
             joint.
         jerk: :math:`j` > 0 [rad/s³] likewise, or None: not checked.
+        period: The interface's period p > 0 [s] (the FCI's 1 ms), or None: the control period.
 
     Raises:
         ParameterError: A value that is not > 0, or NaN (naming it).
@@ -49,14 +63,19 @@ class InterfaceLimits(Plant):
     parameter_constraints: ClassVar[Constraints] = {
         "acceleration": positive_per_joint("rad/s²"),
         "jerk": [positive_per_joint("rad/s³"), None],
+        "period": [Interval(Real, 0, None, closed="neither", unit="s"), None],
     }
 
     def __init__(
-        self, acceleration: float | Sequence[float], jerk: float | Sequence[float] | None = None
+        self,
+        acceleration: float | Sequence[float],
+        jerk: float | Sequence[float] | None = None,
+        period: float | None = None,
     ) -> None:
         check_params(self, locals())
         self.acceleration = acceleration
         self.jerk = jerk
+        self.period = None if period is None else float(period)
 
     def reset(self, robot: Robot, q0: FloatArray, dt: float) -> None:
         """Check the lengths against the robot.
@@ -71,7 +90,9 @@ class InterfaceLimits(Plant):
         """The thresholds (one value, or one per joint)."""
         jerk = () if self.jerk is None else _values(self.jerk)
         return PlantDeclaration(
-            interface_acceleration=_values(self.acceleration), interface_jerk=jerk
+            interface_acceleration=_values(self.acceleration),
+            interface_jerk=jerk,
+            interface_period=self.period or 0.0,
         )
 
     def label(self) -> str:
@@ -79,6 +100,8 @@ class InterfaceLimits(Plant):
         parts = [f"a={'/'.join(f'{x:g}' for x in _values(self.acceleration))}"]
         if self.jerk is not None:
             parts.append(f"j={'/'.join(f'{x:g}' for x in _values(self.jerk))}")
+        if self.period is not None:
+            parts.append(f"p={self.period:g}")
         return f"interface({', '.join(parts)})"
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "ARMATURE",
     "FR3_ACCELERATION",
     "FR3_JERK",
+    "FCI_PERIOD",
     "FRANKA_ACCELERATION",
     "FRANKA_JERK",
     "PRESETS",
@@ -61,6 +62,8 @@ FRANKA_JERK = 3750.0
 #: ``kMaxJointAcceleration`` and ``kMaxJointJerk``, the same on every joint.
 FR3_ACCELERATION = 10.0
 FR3_JERK = 5000.0
+#: The FCI's period [s]: libfranka's ``kDeltaT = 1e-3`` (``rate_limiting.h``).
+FCI_PERIOD = 0.001
 
 #: Reflected rotor inertia of every joint [kg·m²]: MuJoCo Menagerie's UR5e and Panda models.
 ARMATURE = 0.1
@@ -77,11 +80,21 @@ _FRANKA_BODY = ({"type": "delay", "steps": 1},
 PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
     "franka_fci": ({"type": "rate_limit", "acceleration": FRANKA_ACCELERATION}, *_FRANKA_BODY),
     "franka_fci_raw": (
-        {"type": "interface", "acceleration": FRANKA_ACCELERATION, "jerk": FRANKA_JERK},
+        {
+            "type": "interface",
+            "acceleration": FRANKA_ACCELERATION,
+            "jerk": FRANKA_JERK,
+            "period": FCI_PERIOD,
+        },
         *_FRANKA_BODY,
     ),
     "fr3_fci": (
-        {"type": "interface", "acceleration": FR3_ACCELERATION, "jerk": FR3_JERK},
+        {
+            "type": "interface",
+            "acceleration": FR3_ACCELERATION,
+            "jerk": FR3_JERK,
+            "period": FCI_PERIOD,
+        },
         *_FRANKA_BODY,
     ),
     "ur_e_series": (

@@ -31,7 +31,7 @@ from otmm_qp.runner.build import (
     load_robot,
     start_configuration,
 )
-from otmm_qp.runner.plant_stage import experiment_stages, plant_declarations, plant_record
+from otmm_qp.runner.plant_stage import experiment_stages, plant_declarations
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -197,19 +197,17 @@ def prepare_experiment(
         for mode in (config.loop_modes or suite.loop_modes)
     )
     controllers, skipped = build_controllers(config, field_path, suite.metrics.blow_up_speed)
-    # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
-    own = config.plant if config.plant is not None else suite.plant
-    declarations = {
-        c.name: plant_declarations([plant_record(c.plant or own)], episodes[0].dt)
-        for c in config.controllers
-    }
-    prepare(
-        episodes[0], controllers, field_path, reachable=not config.out_of_reach,
-        declarations=declarations,
-    )  # fmt: skip
     plants, conditioning = experiment_stages(
         config.plant if config.plant is not None else suite.plant,
         config.controllers, robot, episodes[0].q0, episodes[0].dt, field_path,
         (max(e.steps for e in episodes), episodes[0].max_steps),
+    )  # fmt: skip
+    declarations = {
+        name: plant_declarations([record], episodes[0].dt) for name, record in plants.items()
+    }
+    # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
+    prepare(
+        episodes[0], controllers, field_path, reachable=not config.out_of_reach,
+        declarations=declarations,
     )  # fmt: skip
     return PreparedExperiment(config, episodes, controllers, skipped, plants, conditioning)

@@ -153,6 +153,10 @@ class RunRecorder:
 
 def _command_limits(
     declaration: PlantDeclaration,
-) -> tuple[tuple[float, ...], tuple[float, ...]]:
+) -> tuple[tuple[float, ...], tuple[float, ...], float]:
     """The interface thresholds of a plant's declaration (``RunResult.command_limits``)."""
-    return declaration.interface_acceleration, declaration.interface_jerk
+    return (
+        declaration.interface_acceleration,
+        declaration.interface_jerk,
+        declaration.interface_period,
+    )

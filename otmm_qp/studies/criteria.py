@@ -23,8 +23,10 @@ then replaces it. A robot without velocity limits has no default speed bound.
 
 Failure causes (:data:`FAILURE_CAUSES`): ``error`` (tolerance or graceful error bound),
 ``speed``, ``position_limit``, ``blow_up``, ``stuck`` (the episode stopped before its end),
-``chatter`` (unachievable tasks only) and ``run_error`` (no episode: task generation or
-controller build failed).
+``chatter`` (unachievable tasks only), ``interface_abort`` (the commanded acceleration or jerk
+passed the thresholds the plant's interface declares, :mod:`otmm_qp.plants.interface`: the arm
+would have aborted the motion) and ``run_error`` (no episode: task generation or controller
+build failed).
 """
 
 from __future__ import annotations

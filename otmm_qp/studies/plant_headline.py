@@ -4,9 +4,11 @@ From the episode rows of a study with a ``plants`` axis (controllers named
 ``controller@plant``), per plant and base controller:
 
 * success rate [%] and the rank by success rate (ties broken by the median max error);
-* median max position error [m], median peak commanded joint speed [rad/s], median
-  ``filter_switches`` (mean) and, for the MuJoCo plant, the median ``peak_torque_ratio`` and the
-  share of episodes with a saturated torque;
+* median max position error [m], median peak commanded joint speed [rad/s], median peak
+  commanded jerk [rad/s³] (``max_command_jerk``), the episodes the arm's interface would abort
+  (``interface_abort``: a commanded acceleration or jerk past the thresholds the plant declares,
+  :mod:`otmm_qp.plants.interface`), median ``filter_switches`` (mean) and, for the MuJoCo plant,
+  the median ``peak_torque_ratio`` and the share of episodes with a saturated torque;
 * against the ideal plant on the same tasks: the paired Wilcoxon signed-rank test of the max
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
@@ -30,6 +32,7 @@ import numpy as np
 from scipy import stats
 
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.studies.criteria import INTERFACE_COLUMNS
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
 from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
@@ -39,13 +42,19 @@ __all__ = ["headline", "limit_cost", "main", "plant_rows"]
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
     "max_joint_speed", "filter_switches", "peak_torque_ratio", "saturated_steps",
-    "position_violations",
+    "position_violations", "max_command_jerk", "command_acceleration_violations",
+    "command_jerk_violations",
 ]  # fmt: skip
 
 
 def _median(values: list[float]) -> float:
     finite = [v for v in values if v is not None and math.isfinite(v)]
     return float(np.median(finite)) if finite else math.nan
+
+
+def _aborted(row: dict[str, Any]) -> bool:
+    """Whether the arm's interface would have aborted the episode (a threshold passed)."""
+    return any(int(row.get(name) or 0) > 0 for name in INTERFACE_COLUMNS)
 
 
 def _ranks(rate: dict[str, float], error: dict[str, float]) -> dict[str, int]:
@@ -93,9 +102,9 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     lines = [
         "| plant | controller | rank | success % | median max error [m] | Δ error vs "
         f"{reference}: tasks where {reference} is lower / tied / higher, Holm p | "
-        "median peak speed [rad/s] | "
+        "median peak speed [rad/s] | median peak jerk [rad/s³] | interface aborts | "
         "mean filter switches | median peak τ/τ_max | saturated episodes % |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|",
+        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|",
     ]
     for p in plants:
         for c in controllers:
@@ -109,6 +118,8 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
             lines.append(
                 f"| {p} | {c} | {ranks[p][c]} | {rate[p, c]:.0f} | {error[p, c]:.3g} | {versus} "
                 f"| {_median([r['max_joint_speed'] for r in group]):.3g} "
+                f"| {_median([r.get('max_command_jerk') for r in group]):.3g} "
+                f"| {sum(1 for r in group if _aborted(r))} "
                 f"| {float(np.mean([r['filter_switches'] or 0 for r in group])):.2f} "
                 f"| {'—' if math.isnan(ratio) else f'{ratio:.2f}'} "
                 f"| {'—' if math.isnan(ratio) else f'{saturated:.0f}'} |"

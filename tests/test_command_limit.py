@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from otmm_qp.cli import main
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.limits import CommandLimit, LimitBox, PositionLimit, PredictedPositionLimit
+from otmm_qp.limits import Box, CommandLimit, LimitBox, PositionLimit, PredictedPositionLimit
 from otmm_qp.limits.velocity_limit import VelocityLimit
 from otmm_qp.plants.declaration import PlantDeclaration, combine
 from otmm_qp.robots.planar_arm import PlanarArm
@@ -254,3 +254,28 @@ def test_the_loop_keeps_the_interface_thresholds_and_the_limits(tmp_path: Path) 
         assert int(limited["position_violations"]) == 0
         assert float(limited["max_command_acceleration"]) <= 5.0 * (1 + 1e-9)
         assert int(free["command_acceleration_violations"]) > 0  # the test can fail
+
+
+def test_fr3_velocity_box_is_libfrankas() -> None:
+    """Far from the limits the cap minus kLimitEps; at θ⁺ (θ⁻) the joint must move back."""
+    from otmm_qp.limits.fr3_velocity_limit import FR3_VELOCITY, LIMIT_EPS, Fr3VelocityLimit
+
+    speed, _, _, upper, lower = (np.array(c) for c in zip(*FR3_VELOCITY, strict=True))
+    robot = _robot([-10.0] * 7, [20.0] * 7, [10.0] * 7)
+    limit = Fr3VelocityLimit()
+    limit.bind(robot, 0.001)
+    box = Box(np.empty(7), np.empty(7))
+    limit.compute_box((upper + lower) / 2.0, np.zeros(7), box)
+    assert np.allclose(box.upper, speed - LIMIT_EPS) and np.allclose(box.lower, LIMIT_EPS - speed)
+    limit.compute_box(upper, np.zeros(7), box)
+    assert np.allclose(box.upper, -LIMIT_EPS)
+    limit.compute_box(lower, np.zeros(7), box)
+    assert np.allclose(box.lower, LIMIT_EPS)
+    # monotone: the upper bound falls as θ approaches θ⁺
+    previous = box.upper.copy()
+    for fraction in np.linspace(0.0, 1.0, 11):
+        limit.compute_box(lower + fraction * (upper - lower), np.zeros(7), box)
+        assert np.all(box.upper <= previous + 1e-12) or fraction == 0.0
+        previous = box.upper.copy()
+    with pytest.raises(OtmmError, match="7-joint"):
+        limit.bind(_robot([-1.0] * 3, [2.0] * 3, [1.0] * 3), 0.001)

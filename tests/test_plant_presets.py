@@ -49,6 +49,15 @@ def test_presets_expand_to_their_documented_stages() -> None:
     assert sorted(PRESETS) == ["fr3_fci", "franka_fci", "franka_fci_raw", "ur_cb3", "ur_e_series"]
 
 
+def test_ur_lookahead_is_the_lag() -> None:
+    """servoj's lookahead_time, a parameter of the UR presets, is the lag's τ."""
+    for name in ("ur_e_series", "ur_cb3"):
+        _, lag, _ = build_plant({"preset": name, "lookahead": 0.1}).stages
+        assert isinstance(lag, LagPlant) and lag.tau == 0.1
+        _, lag, _ = build_plant({"preset": name}).stages
+        assert isinstance(lag, LagPlant) and lag.tau == 0.03
+
+
 @pytest.mark.parametrize(
     ("name", "acceleration", "jerk"), [("franka_fci_raw", 7.5, 3750.0), ("fr3_fci", 10.0, 5000.0)]
 )
@@ -71,6 +80,9 @@ def test_raw_franka_presets_check_the_stream_without_a_rate_limiter(
     [
         ({"preset": "kuka_lbr"}, "plant.preset"),
         ({"preset": "ur_cb3", "seed": 1}, "plant"),
+        ({"preset": "franka_fci", "lookahead": 0.1}, "plant"),
+        ({"preset": "ur_e_series", "lookahead": 0.01}, "plant.lookahead"),
+        ({"preset": "ur_e_series", "lookahead": float("nan")}, "plant.lookahead"),
         ([{"preset": 7}], "plant.0.preset"),
     ],
 )

@@ -16,11 +16,15 @@ preset needs the arm's joint efforts (a URDF ``effort`` per joint).
                     (``interface`` stage), not applied
 ``fr3_fci``         as ``franka_fci_raw`` with the FR3's thresholds, 10 rad/s² and
                     5000 rad/s³ on every joint (libfranka 0.15 ``rate_limiting.h``)
-``ur_e_series`` latency 1 period; servoj look-ahead smoothing as a lag τ = 0.03 s (its
-                smallest look-ahead); MuJoCo servos at 300/(2π) ≈ 47.7 Hz (servoj's default
-                gain 300 as ω [1/s]), 2 ms step
-``ur_cb3``      as ``ur_e_series`` with a latency of 2 periods (125 Hz instead of 500 Hz)
-==============  ===================================================================
+``ur_e_series``     latency 1 period; servoj look-ahead smoothing as a lag τ = ``lookahead``
+                    (default 0.03 s, its smallest; ``{preset: ur_e_series, lookahead: 0.1}``);
+                    MuJoCo servos at 300/(2π) ≈ 47.7 Hz (servoj's default gain 300 as
+                    ω [1/s]), 2 ms step. At 500 Hz latency and lag reproduce the measured
+                    servoj lag, ≈ 17 periods of 2 ms = 34 ms on a UR10e over RTDE with
+                    lookahead 0.03 (2–3 periods, 4–6 ms, with ``sync()`` instead of servoj;
+                    Universal_Robots_Client_Library issue #86; docs/plants.md)
+``ur_cb3``          as ``ur_e_series`` with a latency of 2 periods (125 Hz, not 500 Hz)
+==================  ===============================================================
 
 Every preset body gives each joint a reflected rotor inertia (``armature``) of 0.1 kg·m², the
 value of MuJoCo Menagerie's ``universal_robots_ur5e/ur5e.xml`` and
@@ -38,6 +42,7 @@ from otmm_qp.exceptions import ConfigError
 
 __all__ = [
     "ARMATURE",
+    "LOOKAHEAD_KEY",
     "FR3_ACCELERATION",
     "FR3_JERK",
     "FCI_PERIOD",
@@ -51,6 +56,11 @@ __all__ = [
 
 #: The key of a preset entry.
 PRESET_KEY = "preset"
+#: servoj's ``lookahead_time`` [s] of a UR preset (its lag τ), and its allowed range (the UR
+#: script manual: 0.03–0.2 s).
+LOOKAHEAD_KEY = "lookahead"
+LOOKAHEAD_RANGE = (0.03, 0.2)
+LOOKAHEAD_PRESETS = ("ur_e_series", "ur_cb3")
 
 #: libfranka's rate limit [rad/s²]: the smallest of its per-joint ``kMaxJointAcceleration``
 #: (15, 7.5, 10, 12.5, 15, 20, 20; joint 2's), for every joint so the preset runs on any arm.
@@ -111,17 +121,23 @@ PRESETS: dict[str, tuple[Mapping[str, Any], ...]] = {
 
 
 def expand_preset(block: Mapping[str, Any], field: str) -> list[Mapping[str, Any]]:
-    """The stages of ``{preset: NAME}``.
+    """The stages of ``{preset: NAME}`` (a UR preset also takes ``lookahead``).
+
+    ``lookahead`` [s] is servoj's ``lookahead_time``, in [0.03, 0.2] (the UR script manual's
+    range), modelled as the lag's τ (default 0.03, the preset's own).
 
     Raises:
-        ConfigError: An unknown name, or other keys beside ``preset`` (one line, naming the
-            field and the presets there are).
+        ConfigError: An unknown name, other keys beside ``preset`` (and ``lookahead`` on a UR
+            preset), or a ``lookahead`` out of range (one line, naming the field).
     """
-    others = sorted(str(key) for key in block if key != PRESET_KEY)
+    name = block[PRESET_KEY]
+    allowed = {PRESET_KEY, LOOKAHEAD_KEY} if name in LOOKAHEAD_PRESETS else {PRESET_KEY}
+    others = sorted(str(key) for key in block if key not in allowed)
     if others:
         raise ConfigError(
             field,
-            f"a preset takes no other keys, got {', '.join(others)}; list the stages to change one",
+            f"a preset takes no other keys, got {', '.join(others)} (the UR presets take "
+            f"{LOOKAHEAD_KEY}); list the stages to change one",
         )
     name = block[PRESET_KEY]
     if not isinstance(name, str) or name not in PRESETS:
@@ -129,7 +145,24 @@ def expand_preset(block: Mapping[str, Any], field: str) -> list[Mapping[str, Any
             f"{field}.{PRESET_KEY}",
             f"unknown preset {name!r}; available: {', '.join(sorted(PRESETS))}",
         )
-    return [dict(stage) for stage in PRESETS[name]]
+    stages = [dict(stage) for stage in PRESETS[name]]
+    lookahead = block.get(LOOKAHEAD_KEY)
+    if lookahead is not None:
+        low, high = LOOKAHEAD_RANGE
+        if (
+            isinstance(lookahead, bool)
+            or not isinstance(lookahead, int | float)
+            or not low <= lookahead <= high
+        ):
+            raise ConfigError(
+                f"{field}.{LOOKAHEAD_KEY}",
+                f"must be a number in [{low:g}, {high:g}] s (servoj's lookahead_time), "
+                f"got {lookahead!r:.40}",
+            )
+        for stage in stages:
+            if stage["type"] == "lag":
+                stage["tau"] = float(lookahead)
+    return stages
 
 
 def preset_lines(params: bool = False, names: Sequence[str] | None = None) -> list[str]:

@@ -14,7 +14,7 @@ from otmm_qp.config.schema import ControllerConfig, PresetConfig
 from otmm_qp.exceptions import ConfigError, DimensionError, OtmmError
 from otmm_qp.plants.chain import PlantChain, build_plant
 from otmm_qp.plants.declaration import PlantDeclaration
-from otmm_qp.plants.presets import PRESET_KEY
+from otmm_qp.plants.presets import LOOKAHEAD_KEY, PRESET_KEY
 from otmm_qp.robots.robot import FloatArray, Robot
 
 __all__ = [
@@ -39,6 +39,8 @@ def plant_record(spec: Any) -> Any:
     if isinstance(spec, list):
         return [plant_record(s) for s in spec]
     if isinstance(spec, PresetConfig):
+        if spec.lookahead is not None:
+            return {PRESET_KEY: spec.preset, LOOKAHEAD_KEY: spec.lookahead}
         return {PRESET_KEY: spec.preset}
     return dict(spec.params, type=spec.type)
 

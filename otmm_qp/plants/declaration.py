@@ -100,8 +100,9 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
         quantum,
         frequency,
         acceleration,
-        *interface,
-        period,
+        interface_acceleration=interface[0],
+        interface_jerk=interface[1],
+        interface_period=period,
     )
 
 

@@ -139,13 +139,11 @@ def expand_preset(block: Mapping[str, Any], field: str) -> list[Mapping[str, Any
             f"a preset takes no other keys, got {', '.join(others)} (the UR presets take "
             f"{LOOKAHEAD_KEY}); list the stages to change one",
         )
-    name = block[PRESET_KEY]
     if not isinstance(name, str) or name not in PRESETS:
         raise ConfigError(
             f"{field}.{PRESET_KEY}",
             f"unknown preset {name!r}; available: {', '.join(sorted(PRESETS))}",
         )
-    stages = [dict(stage) for stage in PRESETS[name]]
     lookahead = block.get(LOOKAHEAD_KEY)
     if lookahead is not None:
         low, high = LOOKAHEAD_RANGE
@@ -159,10 +157,11 @@ def expand_preset(block: Mapping[str, Any], field: str) -> list[Mapping[str, Any
                 f"must be a number in [{low:g}, {high:g}] s (servoj's lookahead_time), "
                 f"got {lookahead!r:.40}",
             )
-        for stage in stages:
-            if stage["type"] == "lag":
-                stage["tau"] = float(lookahead)
-    return stages
+        return [
+            dict(stage, tau=float(lookahead)) if stage["type"] == "lag" else dict(stage)
+            for stage in PRESETS[name]
+        ]
+    return [dict(stage) for stage in PRESETS[name]]
 
 
 def preset_lines(params: bool = False, names: Sequence[str] | None = None) -> list[str]:

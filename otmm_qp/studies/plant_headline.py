@@ -118,7 +118,7 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
             lines.append(
                 f"| {p} | {c} | {ranks[p][c]} | {rate[p, c]:.0f} | {error[p, c]:.3g} | {versus} "
                 f"| {_median([r['max_joint_speed'] for r in group]):.3g} "
-                f"| {_median([r.get('max_command_jerk') for r in group]):.3g} "
+                f"| {_median([r.get('max_command_jerk', math.nan) for r in group]):.3g} "
                 f"| {sum(1 for r in group if _aborted(r))} "
                 f"| {float(np.mean([r['filter_switches'] or 0 for r in group])):.2f} "
                 f"| {'—' if math.isnan(ratio) else f'{ratio:.2f}'} "

@@ -16,7 +16,9 @@ From the episode rows of a study with a ``plants`` axis (controllers named
 When the study has both ``qp`` and ``qp-box`` (``qp`` with today's position box), a second
 table pairs them per plant on the same tasks (:func:`limit_cost`): episodes with a position-limit
 violation, success rates with the exact McNemar test, and the paired Wilcoxon test of the max
-error, both Holm-corrected over the plants.
+error, both Holm-corrected over the plants. ``--pair NEW OLD`` (rows ``controller@plant``)
+adds the same comparison for any two rows of the study (:func:`pair_cost`), with the episodes
+the arm's interface would abort.
 
 Run as ``otmm-qp study plants RESULTS_DIR`` (prints Markdown).
 """
@@ -37,7 +39,7 @@ from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
 from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
 
-__all__ = ["headline", "limit_cost", "main", "plant_rows"]
+__all__ = ["headline", "limit_cost", "main", "pair_cost", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
@@ -197,6 +199,62 @@ def limit_cost(rows: list[dict[str, Any]], new: str = "qp", old: str = "qp-box")
         lines.append(
             f"| {p} | {violations[0]} / {violations[1]} | {percent[0]:.0f} / {percent[1]:.0f} | "
             f"{r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
+            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
+    """Markdown: each ``(new, old)`` pair of rows (``controller@plant``) on the same tasks.
+
+    Per pair: episodes the arm's interface would abort and episodes past a position limit
+    (new / old), success rates with the exact McNemar test and the paired Wilcoxon test of the
+    max error, both Holm-corrected over the pairs. ``new`` and ``old`` may run under different
+    plants (e.g. ``qp-cmd@franka_fci_raw`` against ``qp@franka_fci``).
+
+    Raises:
+        ConfigError: A named row that the study does not hold.
+    """
+    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
+    by: dict[str, dict[Any, dict[str, Any]]] = {}
+    for row in rows:
+        by.setdefault(str(row["controller"]), {})[key(row)] = row
+    for name in (name for pair in pairs for name in pair):
+        if name not in by:
+            raise ConfigError("--pair", f"no rows {name!r:.60}; have: {', '.join(sorted(by))}")
+    rates, errors, counts = [], [], []
+    for new, old in pairs:
+        tasks = sorted(set(by[new]) & set(by[old]), key=str)
+        a, b = [by[new][t] for t in tasks], [by[old][t] for t in tasks]
+        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
+        rates.append(mcnemar_exact(new, old, success[0], success[1]))
+        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
+        errors.append(paired_test(new, old, maxima[0], maxima[1]))
+        counts.append(
+            [
+                (
+                    sum(_aborted(r) for r in x),
+                    sum((r["position_violations"] or 0) > 0 for r in x),
+                    100.0 * float(np.mean(success[i])),
+                )
+                for i, x in enumerate((a, b))
+            ]
+            + [len(tasks)]
+        )
+    p_rates = holm([r.p_value for r in rates])
+    p_errors = holm([t.p_value for t in errors])
+    lines = [
+        "| new / old | tasks | interface aborts | past a position limit | success % | tasks "
+        "only new / only old succeeds, Holm p | max error: tasks new lower / tied / higher, "
+        "Holm p |",
+        "|---|---:|---:|---:|---:|---|---|",
+    ]
+    for i, (new, old) in enumerate(pairs):
+        (abort_a, past_a, rate_a), (abort_b, past_b, rate_b), tasks = counts[i]
+        r, t = rates[i], errors[i]
+        lines.append(
+            f"| {new} / {old} | {tasks} | {abort_a} / {abort_b} | {past_a} / {past_b} | "
+            f"{rate_a:.0f} / {rate_b:.0f} | {r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
             f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
         )
     return "\n".join(lines) + "\n"

@@ -279,3 +279,27 @@ def test_fr3_velocity_box_is_libfrankas() -> None:
         previous = box.upper.copy()
     with pytest.raises(OtmmError, match="7-joint"):
         limit.bind(_robot([-1.0] * 3, [2.0] * 3, [1.0] * 3), 0.001)
+
+
+def test_pair_cost_counts_aborts_and_pairs_the_tasks() -> None:
+    """--pair: aborts and limit violations per row, McNemar's discordant tasks, one-line error."""
+    from otmm_qp.studies.plant_headline import pair_cost
+
+    def row(name: str, task: int, success: bool, jerk: int, error: float) -> dict:
+        return {
+            "controller": name, "robot": "r", "generator": "g", "task_index": task,
+            "success": success, "max_error": error, "position_violations": 0,
+            "command_acceleration_violations": 0, "command_jerk_violations": jerk,
+        }  # fmt: skip
+
+    rows = [row("new@p", t, t != 0, int(t == 1), 0.1 * t) for t in range(4)]
+    rows += [row("old@q", t, t != 3, 0, 0.1 * t + 0.05) for t in range(4)]
+    table = pair_cost(rows, [("new@p", "old@q")])
+    line = table.splitlines()[-1]
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[0] == "new@p / old@q" and cells[1] == "4"
+    assert cells[2] == "1 / 0"  # one episode of new would be aborted
+    assert cells[4] == "75 / 75" and cells[5].startswith("1 / 1,")
+    assert cells[6].startswith("4 / 0 / 0,")  # new's error lower on every task
+    with pytest.raises(OtmmError, match="--pair"):
+        pair_cost(rows, [("new@p", "missing@q")])

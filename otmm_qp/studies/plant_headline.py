@@ -222,7 +222,8 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
     for name in (name for pair in pairs for name in pair):
         if name not in by:
             raise ConfigError("--pair", f"no rows {name!r:.60}; have: {', '.join(sorted(by))}")
-    rates, errors, counts = [], [], []
+    rates, errors = [], []
+    counts: list[tuple[tuple[int, int, float], tuple[int, int, float], int]] = []
     for new, old in pairs:
         tasks = sorted(set(by[new]) & set(by[old]), key=str)
         a, b = [by[new][t] for t in tasks], [by[old][t] for t in tasks]
@@ -230,17 +231,15 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
         rates.append(mcnemar_exact(new, old, success[0], success[1]))
         maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
         errors.append(paired_test(new, old, maxima[0], maxima[1]))
-        counts.append(
-            [
-                (
-                    sum(_aborted(r) for r in x),
-                    sum((r["position_violations"] or 0) > 0 for r in x),
-                    100.0 * float(np.mean(success[i])),
-                )
-                for i, x in enumerate((a, b))
-            ]
-            + [len(tasks)]
-        )
+        tallies = [
+            (
+                sum(_aborted(r) for r in x),
+                sum((r["position_violations"] or 0) > 0 for r in x),
+                100.0 * float(np.mean(success[i])),
+            )
+            for i, x in enumerate((a, b))
+        ]
+        counts.append((tallies[0], tallies[1], len(tasks)))
     p_rates = holm([r.p_value for r in rates])
     p_errors = holm([t.p_value for t in errors])
     lines = [
@@ -250,10 +249,10 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
         "|---|---:|---:|---:|---:|---|---|",
     ]
     for i, (new, old) in enumerate(pairs):
-        (abort_a, past_a, rate_a), (abort_b, past_b, rate_b), tasks = counts[i]
+        (abort_a, past_a, rate_a), (abort_b, past_b, rate_b), count = counts[i]
         r, t = rates[i], errors[i]
         lines.append(
-            f"| {new} / {old} | {tasks} | {abort_a} / {abort_b} | {past_a} / {past_b} | "
+            f"| {new} / {old} | {count} | {abort_a} / {abort_b} | {past_a} / {past_b} | "
             f"{rate_a:.0f} / {rate_b:.0f} | {r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
             f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
         )

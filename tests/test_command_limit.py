@@ -303,3 +303,40 @@ def test_pair_cost_counts_aborts_and_pairs_the_tasks() -> None:
     assert cells[6].startswith("4 / 0 / 0,")  # new's error lower on every task
     with pytest.raises(OtmmError, match="--pair"):
         pair_cost(rows, [("new@p", "missing@q")])
+
+
+@settings(max_examples=10, deadline=None)
+@given(
+    st.lists(st.floats(-3.0, 0.0), min_size=2, max_size=2),
+    st.lists(st.floats(1.0, 4.0), min_size=2, max_size=2),
+    st.lists(st.floats(0.5, 3.0), min_size=2, max_size=2),
+    st.lists(st.floats(0.05, 0.95), min_size=2, max_size=2),
+    st.integers(0, 2**31 - 1),
+)
+def test_with_the_jerk_limited_brake_the_acceleration_box_and_the_limits_hold(
+    lower: list[float], width: list[float], speed: list[float], start: list[float], seed: int
+) -> None:
+    """The FCI's thresholds at 50 Hz (1 ms interface), from rest, any point of the box
+    commanded: no step's box is empty, the acceleration box holds on every step and no joint
+    passes its limits (the jerk-limited stopping distance and the jerk box are soft: given up
+    where they must be, which this test does not bound)."""
+    robot = _robot(lower, width, speed)
+    dt, a, j = 0.02, 7.5, 3750.0
+    box = LimitBox([VelocityLimit(), PredictedPositionLimit(0.5), CommandLimit()])
+    box.declare_plant(
+        PlantDeclaration(interface_acceleration=(a,), interface_jerk=(j,), interface_period=1e-3)
+    )
+    box.bind(robot, dt)
+    box.reset()
+    low, high = (np.asarray(x) for x in robot.position_limits)
+    theta = low + np.array(start) * (high - low)
+    previous = np.zeros(2)
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        assert not box.compute(theta, previous)
+        lb, ub = box.bounds
+        qdot = lb + rng.choice([0.0, 1.0, rng.uniform()], size=2) * (ub - lb)
+        assert np.all(np.abs(qdot - previous) <= a * dt * (1 + RTOL) + 1e-12)
+        theta = theta + qdot * dt
+        assert np.all(theta <= high + 1e-12) and np.all(theta >= low - 1e-12)
+        previous = qdot

@@ -152,7 +152,7 @@ class LimitBox:
         for limit in self.limits:
             if limit.braking is not None:
                 for other in self.limits:
-                    other.brake_with(limit.braking)
+                    other.brake_with(limit.braking, limit.jerk_braking, limit.stop_box)
         static = [box for limit, box in zip(self.limits, parts, strict=True) if limit.static]
         combined = Box(-inf, inf.copy())
         if static:

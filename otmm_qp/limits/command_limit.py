@@ -168,8 +168,12 @@ class CommandLimit(Limit):
         self._step: FloatArray = a * dt
         period = self.declared.interface_period or dt
         self._jerk_step: FloatArray | None = None if j is None else j * dt * min(dt, period)
+        #: The jerk step J [rad/s] the position limits' stopping distance respects.
+        self.jerk_braking: FloatArray | None = self._jerk_step if self.braking is not None else None
         self._older: FloatArray = np.zeros(robot.nv)
         self._jerk = Box(np.empty(robot.nv), np.empty(robot.nv))
+        #: The jerk-limited stopping distance the position limits write (±inf: none).
+        self.stop_box: Box | None = Box(np.full(robot.nv, -np.inf), np.full(robot.nv, np.inf))
         self._started = False
 
     def reset(self) -> None:
@@ -177,8 +181,13 @@ class CommandLimit(Limit):
         self._started = False
 
     def secondary(self) -> tuple[Box, ...]:
-        """The jerk box of the last :meth:`compute_box` (relaxed after the acceleration box)."""
-        return () if self._jerk_step is None else (self._jerk,)
+        """The jerk-limited stopping distance, then the jerk box (none without a jerk limit).
+
+        Given up in that order, after the acceleration box.
+        """
+        if self._jerk_step is None or self.stop_box is None:
+            return ()
+        return (self.stop_box, self._jerk)
 
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:
         r"""``A_k`` into ``out`` and ``J_k`` into :meth:`secondary` [rad/s], shapes ``(nv,)``."""

@@ -102,8 +102,20 @@ class Limit(BaseLimit):
         """Further boxes of the last :meth:`compute_box`, relaxed after this one (none here)."""
         return ()
 
-    def brake_with(self, acceleration: FloatArray) -> None:  # noqa: B027 - optional hook
-        """Keep a stopping distance at ``acceleration`` [rad/s²] (nv,) (after :meth:`bind`)."""
+    #: The jerk step :math:`J` [rad/s] (nv,) the stopping distance must respect (None: none).
+    jerk_braking: FloatArray | None = None
+
+    #: The soft box a position limit writes its jerk-limited stopping distance into.
+    stop_box: Box | None = None
+
+    def brake_with(  # noqa: B027 - optional hook
+        self, acceleration: FloatArray, jerk_step: FloatArray | None = None, soft: Box | None = None
+    ) -> None:
+        """Keep a stopping distance at ``acceleration`` [rad/s²] (nv,) (after :meth:`bind`).
+
+        With ``jerk_step`` [rad/s] (nv,) and ``soft``, also the jerk-limited one, written into
+        ``soft`` each step (a soft box).
+        """
 
     @abc.abstractmethod
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:

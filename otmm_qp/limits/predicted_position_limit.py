@@ -246,6 +246,7 @@ class PredictedPositionLimit(PositionLimit):
 
     def reset(self) -> None:
         """Nothing in flight (a new run)."""
+        super().reset()
         if hasattr(self, "prediction"):
             self.prediction.reset()
             if self._rate_step is not None:

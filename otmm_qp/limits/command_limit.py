@@ -16,12 +16,15 @@ These boxes are *soft* (:attr:`Limit.soft`): the
 step's box is composed by :class:`~otmm_qp.limits.box.LimitBox` in the stated order
 
 .. math::
-    B_k = \mathrm{relax}(H_k, A_k, J_k)
+    B_k = \mathrm{relax}(H_k, A_k, S_k, J_k)
 
-with :math:`H_k` the hard boxes (velocity, position with the stopping distance below): each
-next box is intersected when the intersection is non-empty, else the current box shrinks, per
-joint, to its point nearest that box (:func:`~otmm_qp.limits.box.relaxed`). So the jerk box
-is given up first, then the acceleration box, never the position or velocity box: the step
+with :math:`H_k` the hard boxes (velocity, position with the stopping distance below) and
+:math:`S_k` the jerk-limited stopping distance (with a jerk limit only,
+:mod:`otmm_qp.limits.jerk_stopping`): each next box is intersected when the intersection is
+non-empty, else the current box shrinks, per joint, to its point nearest that box
+(:func:`~otmm_qp.limits.box.relaxed`). So the jerk box is given up first, then the
+jerk-limited stopping distance, then the acceleration box, never the position or velocity
+box: the step
 brakes as hard as the position limit needs and no harder, :math:`B_k \ne \emptyset` whenever
 :math:`H_k \ne \emptyset`, and the backend reports ``relaxed`` instead of an infeasible QP.
 
@@ -59,11 +62,15 @@ speed limit is constant, so braking keeps it).
   :math:`(1 - 2g)/(2g(1+g))`, at :math:`\sqrt{1+2x} = (1+g)/g`, is :math:`\le 0` for
   :math:`g \ge 1/2`. ∎
 
-For :math:`g < 1/2`, a ``deceleration`` bound, a ramp, or measurement noise the claim is not
-made: the composition above still keeps the position and speed limits and relaxes the
-acceleration box only on the steps where it must. The jerk box holds whenever it meets
-:math:`H_k \cap A_k` (no stopping distance accounts for the jerk: the jerk-limited brake takes
-:math:`2a/j` longer to reach :math:`-a`; ``tests/test_command_limit.py`` counts the steps).
+With a jerk limit the gain box is dropped within the limits (:math:`\beta(d) \le d/dt` keeps
+them), so the claim holds for every :math:`g` (the first bullet is the whole proof). For
+:math:`g < 1/2` without a jerk limit, a ``deceleration`` bound, a ramp, or measurement noise
+the claim is not made: the composition above still keeps the position and speed limits and
+relaxes the acceleration box only on the steps where it must. The jerk box holds whenever it
+meets :math:`H_k \cap A_k \cap S_k`; :math:`S_k` keeps one jerk-limited brake available
+toward each limit, but the two sides are not proven compatible together (a joint whose two
+bounds cross gives :math:`S_k` up), so the jerk is measured, not claimed
+(``tests/test_command_limit.py``, the plants_franka study in docs/plants.md).
 
 Per-joint limits come from the robot or the preset: ``plant`` (the default) reads what the
 run's plant declares (:class:`~otmm_qp.plants.interface.InterfaceLimits`, the

@@ -70,7 +70,7 @@ def scenes(draw: st.DrawFn) -> dict:
     }
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(scenes())
 def test_position_kept_and_acceleration_held_after_the_first_step(scene: dict) -> None:
     robot, dt, a = scene["robot"], scene["dt"], scene["a"]
@@ -98,7 +98,7 @@ def test_position_kept_and_acceleration_held_after_the_first_step(scene: dict) -
         previous = qdot
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(scenes(), st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3))
 def test_braking_first_from_any_state(scene: dict, offset: list[float]) -> None:
     """At and beyond the limits, moving fast: the hard boxes kept, the soft ones when they fit."""

@@ -85,7 +85,9 @@ class SnsBackend(Backend):
     :math:`\dot Q_{max} = \min(\dot q_{max}, (\theta_{max} - \theta)/dt)`,
     :math:`\dot Q_{min} = \max(-\dot q_{max}, (\theta_{min} - \theta)/dt)` (``velocity`` and
     ``{type: position, gain: 1}``), with :math:`\dot q_{max}` the robot's speed limit,
-    further capped by ``{type: velocity, max_speed: …}``. Conflicting boxes (a joint outside
+    further capped by ``{type: velocity, max_speed: …}``; a soft ``command`` limit (the
+    command's acceleration and jerk, :mod:`otmm_qp.limits.command_limit`) is given up braking
+    first. Conflicting boxes (a joint outside
     its position limit) are relaxed by priority (:func:`otmm_qp.limits.box.relaxed`): the
     joint may return at its speed limit.
 
@@ -166,7 +168,18 @@ class SnsBackend(Backend):
     def solve(
         self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
     ) -> BackendOutput:
-        """SNS joint velocity [rad/s], shape ``(nv,)``; ``scale`` is the task scale s."""
+        """SNS joint velocity [rad/s], shape ``(nv,)``; ``scale`` is the task scale s.
+
+        Status ``relaxed`` when a soft command limit was given up on the step (braking first).
+        """
+        output = self._solve(state, xdot, qdot_prev)
+        if self.box.softened:
+            return output._replace(status=Status.RELAXED)
+        return output
+
+    def _solve(
+        self, state: KinematicState, xdot: FloatArray, qdot_prev: FloatArray
+    ) -> BackendOutput:
         jacobian = state.task_jacobian
         n, nv = jacobian.shape
         lower, upper = self.bounds(state, qdot_prev)

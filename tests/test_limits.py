@@ -176,7 +176,7 @@ def test_older_keys_are_refused_saying_what_to_write(
         (lambda: QpBackend(limits=[{"gain": 0.5}]), "limits.0: must be a mapping {type: NAME"),
         (
             lambda: QpBackend(limits=[{"type": "jerk"}]),
-            "limits.0: unknown limit 'jerk'; available: acceleration, position,",
+            "limits.0: unknown limit 'jerk'; available: acceleration, command, fr3_velocity,",
         ),
         (lambda: QpBackend(limits=[{"type": "position", "gain": 2}]), "limits.0.gain: must be in"),
         (lambda: QpBackend(limits=[{"type": "position", "g": 1}]), "limits.0.g: unknown parameter"),

@@ -47,7 +47,33 @@ def test_presets_expand_to_their_documented_stages() -> None:
         assert math.isclose(body.frequency * 2 * math.pi, 300.0)
     inside = build_plant([{"type": "sensor", "noise": 1e-4}, {"preset": "ur_cb3"}])
     assert [s.name for s in inside.stages] == ["sensor", "delay", "lag", "mujoco"]
-    assert sorted(PRESETS) == ["franka_fci", "ur_cb3", "ur_e_series"]
+    assert sorted(PRESETS) == ["fr3_fci", "franka_fci", "franka_fci_raw", "ur_cb3", "ur_e_series"]
+
+
+def test_ur_lookahead_is_the_lag() -> None:
+    """servoj's lookahead_time, a parameter of the UR presets, is the lag's τ."""
+    for name in ("ur_e_series", "ur_cb3"):
+        _, lag, _ = build_plant({"preset": name, "lookahead": 0.1}).stages
+        assert isinstance(lag, LagPlant) and lag.tau == 0.1
+        _, lag, _ = build_plant({"preset": name}).stages
+        assert isinstance(lag, LagPlant) and lag.tau == 0.03
+
+
+@pytest.mark.parametrize(
+    ("name", "acceleration", "jerk"), [("franka_fci_raw", 7.5, 3750.0), ("fr3_fci", 10.0, 5000.0)]
+)
+def test_raw_franka_presets_check_the_stream_without_a_rate_limiter(
+    name: str, acceleration: float, jerk: float
+) -> None:
+    """libfranka's default (limit_rate off): no rate limiter, the FCI's thresholds declared."""
+    plant = build_plant({"preset": name})
+    assert [stage.name for stage in plant.stages] == ["interface", "delay", "mujoco"]
+    declared = plant.declares(0.001)
+    assert declared.acceleration == ()  # nothing smooths the stream
+    assert declared.interface_acceleration == (acceleration,)
+    assert declared.interface_jerk == (jerk,)
+    assert declared.interface_period == 0.001  # the FCI's 1 kHz
+    assert declared.delay == 1 and declared.servo_frequency == 100.0
 
 
 @pytest.mark.parametrize(
@@ -55,6 +81,9 @@ def test_presets_expand_to_their_documented_stages() -> None:
     [
         ({"preset": "kuka_lbr"}, "plant.preset"),
         ({"preset": "ur_cb3", "seed": 1}, "plant"),
+        ({"preset": "franka_fci", "lookahead": 0.1}, "plant"),
+        ({"preset": "ur_e_series", "lookahead": 0.01}, "plant.lookahead"),
+        ({"preset": "ur_e_series", "lookahead": float("nan")}, "plant.lookahead"),
         ([{"preset": 7}], "plant.0.preset"),
     ],
 )
@@ -114,6 +143,15 @@ def _run(tmp_path: Path, capsys: pytest.CaptureFixture[str], **edits: Any) -> tu
             "list the rate limiter before every lag",
         ),
         ({"limits": [{"type": "predicted_position", "rate_limit": 0.0}]}, "rate_limit"),
+        ({"limits": [{"type": "command", "acceleration": -1.0}]}, "limits.0.acceleration"),
+        ({"limits": [{"type": "command", "acceleration": float("nan")}]}, "acceleration"),
+        ({"limits": [{"type": "command", "acceleration": 5, "jerk": float("nan")}]}, "jerk"),
+        ({"limits": [{"type": "command", "acceleration": [1.0, 2.0, 3.0]}]}, "acceleration"),
+        ({"limits": [{"type": "command", "jerk": 100.0}]}, "jerk: needs an acceleration limit"),
+        ({"plant": {"type": "interface", "jerk": 5000.0}}, "acceleration"),
+        ({"plant": {"type": "interface", "acceleration": 10, "jerk": -1}}, "plant.jerk"),
+        ({"plant": {"type": "interface", "acceleration": [1.0, 2.0, 3.0]}}, "acceleration"),
+        ({"plant": {"preset": "fr3"}}, "plant.preset: unknown preset 'fr3'"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_before_compute(

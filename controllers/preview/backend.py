@@ -89,7 +89,10 @@ class PreviewBackend(BoxQpBackend):
         limits: The project's limits (:mod:`otmm_qp.limits`): the first segment keeps their
             box; the later ones the speed limit (a ``velocity`` entry's ``max_speed`` caps
             it), the position box when a ``position`` limit is listed (default) and the
-            acceleration limit when one is listed. None: velocity and position (gain 0.5).
+            acceleration limit when one is listed. A soft ``command`` limit (the command's
+            acceleration and jerk) shapes the first segment's box, braking first (status
+            ``relaxed`` when given up; a QP it leaves without solution brakes instead of
+            failing). None: velocity and position (gain 0.5).
         infeasible_policy: ``raise``, ``hold`` or ``dls`` (the nominal's first velocity
             clipped into the relaxed box), as the ``qp`` backend.
         fast_path: Skip the solver when the last step's active bounds, or none, give a point
@@ -288,7 +291,10 @@ class PreviewBackend(BoxQpBackend):
         )  # fmt: skip
         if settled is None or solution.x is None:
             detail = f"solver {self.solver!r} found no solution ({solution.detail})"
-            qdot, status = self.fallback(detail, (problem.copy(), solution), False, plan[0])
+            if self.box.has_soft:  # the command box's point may leave the plan no room: brake
+                qdot, status = self.brake()
+            else:
+                qdot, status = self.fallback(detail, (problem.copy(), solution), False, plan[0])
             self._plan = plan
             return self._output(qdot, status, problem, solution, plan, taus)
         qdot, active = settled
@@ -296,6 +302,8 @@ class PreviewBackend(BoxQpBackend):
         np.copyto(plan, solution.x[: plan.size].reshape(plan.shape))
         plan[0] = qdot
         status = Status.BOUNDED if active else Status.OK
+        if self.box.softened:
+            status = Status.RELAXED
         return self._output(qdot, status, problem, solution, self._plan, taus)
 
     def _solve(self, problem: QpProblem) -> Generator[None, None, Solution]:

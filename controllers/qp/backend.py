@@ -63,7 +63,8 @@ class QpBackend(BoxQpBackend):
     solution is DLS with damping λ; ``BackendOutput.damping`` reports λ [task units], as every
     DLS backend does.
 
-    One step: the box (:meth:`begin_step`); if it is empty, the policy. Else the fast path:
+    One step: the box (:meth:`begin_step`, with soft command limits composed braking first:
+    status ``relaxed`` when one was given up); if it is empty, the policy. Else the fast path:
     the unconstrained minimiser :meth:`QpFormulation.unconstrained` from the shared SVD, kept
     when it lies in the box (convexity makes it the QP optimum then); else the QP
     (:meth:`QpFormulation.build`) in the persistent session, its answer clipped into the box
@@ -182,6 +183,8 @@ class QpBackend(BoxQpBackend):
         session = self._row_session
         if session is not None and status in (Status.OK, Status.BOUNDED):
             qdot, status, record = self._enforce_rows(inputs, session, qdot, status)
+        if self.box.softened and status in (Status.OK, Status.BOUNDED):
+            status = Status.RELAXED  # a soft (command) box was given up, braking first
         # tuple.__new__: the NamedTuple without its Python-level __new__ (a third cheaper).
         return _new(BackendOutput, (qdot, status, self._factor, 1.0, record))
 

@@ -137,6 +137,16 @@ class BoxQpBackend(Backend):
         theta = state.q if self._euclidean else self.robot.joint_coordinates(state.q)
         return theta, self.box.compute(theta, qdot_prev)
 
+    def brake(self) -> tuple[FloatArray, Status]:
+        """Zero velocity clipped into the step's (non-empty, braking-first) box, ``relaxed``.
+
+        The answer of a backend with soft command limits when its problem has no solution
+        under the box (e.g. ``qp_scaled``'s ``J q̇ = α ẋ`` away from the box): the task is
+        given up for the step and every joint slows down as fast as its limits allow.
+        """
+        lower, upper = self.box.bounds
+        return np.clip(np.zeros_like(lower), lower, upper), Status.RELAXED
+
     def classify(self, qdot: FloatArray, tol: float) -> Status:
         """``bounded`` when some ``q̇_i`` is within ``tol·(1 + |bound|)`` of (or beyond) a bound."""
         return self.inside_status(qdot, tol) or Status.BOUNDED

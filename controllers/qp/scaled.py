@@ -113,6 +113,10 @@ class ScaledQpBackend(BoxQpBackend):
             is empty or no ``(q̇, α)`` exists (e.g. the box excludes ``q̇ = 0`` while ``J_w``
             has no null space).
 
+    With a soft command limit (:mod:`otmm_qp.limits.command_limit`) a step whose QP has no
+    solution under the braking-first box brakes instead (zero clipped into that box, ``α = 0``,
+    status ``relaxed``, :meth:`~.box_backend.BoxQpBackend.brake`): never an infeasible QP.
+
     The older keys ``limit_gain`` and ``acceleration_limit`` are refused with the ``limits``
     list to write instead (``removed_parameters``).
     """
@@ -166,6 +170,8 @@ class ScaledQpBackend(BoxQpBackend):
             lower, upper = bounds
             if np.all(candidate >= lower) and np.all(candidate <= upper):
                 status = self._status(candidate, 1.0, 1e-9)
+                if self.box.softened:
+                    status = Status.RELAXED
                 return BackendOutput(candidate, status, scale=1.0, details=QpStep(bounds))
         problem = build_scaled_qp(state, xdot, bounds, self.regularization)
         self.session.load(problem)
@@ -173,6 +179,9 @@ class ScaledQpBackend(BoxQpBackend):
         x = solution.x
         settled = None if x is None else clip_into_box(x[:-1], bounds, SOLVER_TOL)
         if x is None or settled is None or not np.isfinite(x[-1]):
+            if self.box.has_soft:
+                qdot, status = self.brake()
+                return BackendOutput(qdot, status, scale=0.0, details=QpStep(bounds, problem))
             detail = f"solver {self.solver!r} found no (q̇, α) with J q̇ = α ẋ inside the box"
             return self._fail(detail, (problem, solution), False)
         alpha = float(np.clip(x[-1], 0.0, 1.0))
@@ -180,6 +189,8 @@ class ScaledQpBackend(BoxQpBackend):
         status = Status.STUCK if alpha < self.stuck_threshold else (
             Status.BOUNDED if active else Status.OK
         )  # fmt: skip
+        if self.box.softened and status is not Status.STUCK:
+            status = Status.RELAXED
         details = QpStep(bounds, problem, solution)
         return BackendOutput(qdot, status, scale=alpha, details=details)
 

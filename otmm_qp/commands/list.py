@@ -7,7 +7,8 @@ none lists its signature with ``not declared``. Parameters whose meaning changed
 versions follow (what they mean now and meant before, :mod:`otmm_qp.migration.changes`), then
 renamed or removed parameters, marked
 ``(refused)`` with what to write instead. ``--params NAME ...`` restricts it to the plugins of
-those names.
+those names. The plant presets follow (``plant: {preset: NAME}``, :mod:`otmm_qp.plants.presets`),
+each with its stages; ``--params`` adds every stage's values (``--params NAME`` a preset's).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import argparse
 from otmm_qp import registry
 from otmm_qp.exceptions import OtmmError
 from otmm_qp.migration.changes import CHANGES
+from otmm_qp.plants.presets import PRESETS, preset_lines
 from otmm_qp.validation import parameters
 
 NAME = "list"
@@ -73,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
     wanted: list[str] | None = args.params
     if wanted:
         known = {name for group in registry.GROUPS for name in registry.specs(group)}
+        known |= set(PRESETS)
         unknown = [name for name in wanted if name not in known]
         if unknown:
             raise OtmmError(
@@ -91,4 +94,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"{group.rsplit('.', 1)[-1]}:")
             for line in lines:
                 print(line)
+    presets = preset_lines(wanted is not None, wanted or None)
+    if presets or not wanted:
+        print("plant presets (plant: {preset: NAME}):")
+        for line in presets:
+            print(line)
     return 0

@@ -1,4 +1,4 @@
-"""``otmm-qp study plants DIR [--reference PLANT] [--out FILE]``: a plants study's headline.
+"""``otmm-qp study plants DIR [--reference PLANT] [--pair NEW OLD] [--out FILE]``: headline.
 
 Which strategies keep their ranking under a realistic plant; see
 :mod:`otmm_qp.studies.plant_headline`.
@@ -19,16 +19,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--reference", default="ideal", help="the plant every other is compared with (ideal)"
     )
     parser.add_argument("--out", default=None, help="write the Markdown to this file")
+    parser.add_argument(
+        "--pair",
+        nargs=2,
+        action="append",
+        metavar=("NEW", "OLD"),
+        default=None,
+        help="also compare two rows (controller@plant) on the same tasks: interface aborts, "
+        "position limits, success (McNemar), max error (Wilcoxon); repeatable",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Print (or write) the headline table and verdict lines (and the limit-cost table)."""
     from otmm_qp.commands.text_output import emit, out_file
-    from otmm_qp.studies.plant_headline import headline, limit_cost, plant_rows
+    from otmm_qp.studies.plant_headline import headline, limit_cost, pair_cost, plant_rows
 
     out = out_file(args.out)
     rows = plant_rows(args.study)
     text = headline(rows, args.reference).rstrip("\n")
     cost = limit_cost(rows)  # qp against qp-box (today's box), when the study has both
-    emit(text + ("\n\n" + cost.rstrip("\n") if cost else ""), out)
+    pairs = [(new, old) for new, old in args.pair or ()]
+    paired = pair_cost(rows, pairs) if pairs else ""
+    text += "\n\n" + cost.rstrip("\n") if cost else ""
+    emit(text + ("\n\n" + paired.rstrip("\n") if paired else ""), out)
     return 0

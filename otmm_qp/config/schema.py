@@ -70,9 +70,13 @@ class MetricsConfig(Strict):
 
 
 class PresetConfig(Strict):
-    """``{preset: NAME}``: the stages of a plant preset (:mod:`otmm_qp.plants.presets`)."""
+    """``{preset: NAME}``: the stages of a plant preset (:mod:`otmm_qp.plants.presets`).
+
+    ``lookahead`` [s]: servoj's lookahead time of a UR preset (its lag τ; None: 0.03).
+    """
 
     preset: str = Field(min_length=1)
+    lookahead: float | None = None
 
 
 #: A plant: one stage ``{type: lag, tau: 0.02}``, a preset ``{preset: franka_fci}``, or a list

@@ -8,6 +8,14 @@ empty exactly when some ``lb_i > ub_i`` (e.g. a start outside the position limit
 ``q̇_max·dt/g``). :class:`LimitBox` evaluates it every step into preallocated arrays (static
 limits, e.g. the speed limit, once per run); :func:`relaxed` gives the box a non-raising
 infeasibility policy clips into; :func:`conflict` names the joint whose boxes clash.
+
+*Soft* limits (:attr:`Limit.soft`, the command's acceleration and jerk,
+:mod:`otmm_qp.limits.command_limit`) never make the box empty: after the hard boxes are
+intersected, each soft box (and its :meth:`Limit.secondary` boxes) is applied in order as
+:func:`relaxed` applies a box — intersected when that leaves the box non-empty, else the box
+shrinks per joint to its point nearest the soft box — so the position and speed limits (and
+the stopping distance the soft limit asks the position limits to keep, :meth:`Limit.brake_with`)
+come first. :attr:`LimitBox.softened` says whether a soft box was given up on the step.
 """
 
 from __future__ import annotations
@@ -42,6 +50,24 @@ def intersect(boxes: Sequence[Box], out: Box) -> Box:
         np.maximum(out.lower, box.lower, out=out.lower)
         np.minimum(out.upper, box.upper, out=out.upper)
     return out
+
+
+def soften(bounds: Box, soft: Box) -> bool:
+    r"""Apply ``soft`` to the non-empty ``bounds`` in place, as :func:`relaxed`; whether it clashed.
+
+    Per joint, ``bounds ← bounds ∩ soft`` when non-empty, else the point of ``bounds`` nearest
+    to ``soft`` (the end of ``bounds`` on the side of ``soft``) [rad/s], shapes ``(nv,)``.
+    """
+    lower, upper = bounds
+    new_lower, new_upper = np.maximum(lower, soft.lower), np.minimum(upper, soft.upper)
+    clash = new_lower > new_upper
+    if clash.any():
+        nearest = np.clip(np.where(soft.upper < lower, soft.upper, soft.lower), lower, upper)
+        new_lower = np.where(clash, nearest, new_lower)
+        new_upper = np.where(clash, nearest, new_upper)
+    np.copyto(lower, new_lower)
+    np.copyto(upper, new_upper)
+    return bool(clash.any())
 
 
 def relaxed(boxes: Sequence[Box]) -> Box:
@@ -96,10 +122,12 @@ class LimitBox:
         lists: The same ``(lb, ub)`` as two lists of Python floats (set by :meth:`compute`;
             the scalar tests of a step's solution read them instead of converting again).
         static: The intersection of the static limits' boxes (set by :meth:`bind`).
+        softened: Whether the last :meth:`compute` gave up a soft box (braking first).
     """
 
     def __init__(self, limits: Sequence[Limit]) -> None:
         self.limits: tuple[Limit, ...] = tuple(sorted(limits, key=operator.attrgetter("priority")))
+        self.softened = False
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Bind the limits, evaluate the static ones and allocate.
@@ -121,6 +149,10 @@ class LimitBox:
             if limit.static:
                 limit.compute_box(theta, zero, parts[-1])
         self.parts: tuple[Box, ...] = tuple(parts)
+        for limit in self.limits:
+            if limit.braking is not None:
+                for other in self.limits:
+                    other.brake_with(limit.braking, limit.jerk_braking, limit.stop_box)
         static = [box for limit, box in zip(self.limits, parts, strict=True) if limit.static]
         combined = Box(-inf, inf.copy())
         if static:
@@ -129,7 +161,16 @@ class LimitBox:
         self._dynamic = tuple(
             (limit, box) for limit, box in zip(self.limits, parts, strict=True) if not limit.static
         )
-        self._sources: tuple[Box, ...] = (combined, *(box for _, box in self._dynamic))
+        self._sources: tuple[Box, ...] = (combined,) + tuple(
+            box for limit, box in self._dynamic if not limit.soft
+        )
+        self._soft = tuple(
+            (limit, box)
+            for limit, box in self._dynamic
+            if limit.soft and getattr(limit, "active", True)
+        )
+        #: Whether a soft limit is among the limits.
+        self.has_soft = bool(self._soft)
 
     def declare_plant(self, declaration: PlantDeclaration) -> None:
         """Hand the plant's declaration to every limit (before :meth:`bind`)."""
@@ -152,13 +193,23 @@ class LimitBox:
             limit.compute_box(theta, qdot_prev, box)
         intersect(self._sources, self._bounds)
         lower, upper = self.bounds.tolist()
-        self.lists = (lower, upper)
         # A scalar test: a third of the cost of NumPy's greater + any on arm-sized nv.
-        return any(map(operator.gt, lower, upper))
+        empty = any(map(operator.gt, lower, upper))
+        if self._soft:
+            softened = False
+            if not empty:
+                for limit, box in self._soft:
+                    for part in (box, *limit.secondary()):
+                        softened |= soften(self._bounds, part)
+                lower, upper = self.bounds.tolist()
+            self.softened = softened
+        self.lists = (lower, upper)
+        return empty
 
     def relaxed(self) -> Box:
-        """The last step's box relaxed by priority (:func:`relaxed`)."""
-        return relaxed(self.parts)
+        """The last step's box relaxed by priority (:func:`relaxed`), soft boxes included."""
+        return relaxed([part for limit, box in zip(self.limits, self.parts, strict=True)
+                        for part in (box, *limit.secondary())])  # fmt: skip
 
     def conflict(self, joint_names: Sequence[str]) -> str:
         """One line naming the last step's clashing joint (:func:`conflict`)."""

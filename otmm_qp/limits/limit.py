@@ -91,6 +91,31 @@ class Limit(BaseLimit):
     priority: ClassVar[int] = 1
     #: Whether the box depends on neither θ nor q̇_prev (computed once, at bind).
     static: ClassVar[bool] = False
+    #: Whether a clash with the other boxes relaxes this box within the step (braking first,
+    #: :class:`~otmm_qp.limits.box.LimitBox`) instead of making the step's box empty.
+    soft: ClassVar[bool] = False
+    #: The braking acceleration [rad/s²], shape ``(nv,)``, a soft limit asks the position
+    #: limits to keep a stopping distance for (set at :meth:`bind`; None: none).
+    braking: FloatArray | None = None
+
+    def secondary(self) -> tuple[Box, ...]:
+        """Further boxes of the last :meth:`compute_box`, relaxed after this one (none here)."""
+        return ()
+
+    #: The jerk step :math:`J` [rad/s] (nv,) the stopping distance must respect (None: none).
+    jerk_braking: FloatArray | None = None
+
+    #: The soft box a position limit writes its jerk-limited stopping distance into.
+    stop_box: Box | None = None
+
+    def brake_with(  # noqa: B027 - optional hook
+        self, acceleration: FloatArray, jerk_step: FloatArray | None = None, soft: Box | None = None
+    ) -> None:
+        """Keep a stopping distance at ``acceleration`` [rad/s²] (nv,) (after :meth:`bind`).
+
+        With ``jerk_step`` [rad/s] (nv,) and ``soft``, also the jerk-limited one, written into
+        ``soft`` each step (a soft box).
+        """
 
     @abc.abstractmethod
     def compute_box(self, theta: FloatArray, qdot_prev: FloatArray, out: Box) -> Box:

@@ -52,7 +52,7 @@ import numpy as np
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.command_prediction import CommandPrediction
 from otmm_qp.limits.limit import Box, per_joint
-from otmm_qp.limits.position_limit import PositionLimit
+from otmm_qp.limits.position_limit import PositionLimit, StoppingBound
 from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.rate_limit import rate_limit_step
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -233,14 +233,9 @@ class PredictedPositionLimit(PositionLimit):
         #: The rate limiter's :math:`a\,dt` [rad/s] per joint (None: no rate limit).
         self._rate_step: FloatArray | None = None
         if rate is not None:
-            finite = np.isfinite(rate)
-            self._rate_step = np.where(finite, rate * dt, np.inf)
-            self._rate_s = np.where(finite, rate * dt, 0.0)
-            self._rate_s2 = self._rate_s**2
-            self._rate_2a = np.where(finite, 2.0 * rate, 0.0)
-            self._rate_free = np.where(finite, 0.0, np.inf)
+            self._stoppable = StoppingBound(rate, dt)
+            self._rate_step = self._stoppable.step
             self._limited: FloatArray = np.zeros(nv)
-            self._rate_bound: FloatArray = np.empty(nv)
         self._ramp_speed: FloatArray | None = None
         if self.ramp_start is not None:
             speed = np.array(robot.velocity_limits, dtype=float)
@@ -251,6 +246,7 @@ class PredictedPositionLimit(PositionLimit):
 
     def reset(self) -> None:
         """Nothing in flight (a new run)."""
+        super().reset()
         if hasattr(self, "prediction"):
             self.prediction.reset()
             if self._rate_step is not None:
@@ -303,21 +299,6 @@ class PredictedPositionLimit(PositionLimit):
             self._ramp(distance[1], out.upper, np.minimum, 1.0)
             self._ramp(distance[0], out.lower, np.maximum, -1.0)
         return out
-
-    def _stoppable(self, distance: FloatArray) -> FloatArray:
-        r"""The fastest command the limiter can still stop within ``distance`` [rad] (nv,).
-
-        :math:`-a\,dt + \sqrt{(a\,dt)^2 + 2a\max(D, 0)}` [rad/s] (inf for a joint without a
-        rate limit), into a scratch array valid until the next call.
-        """
-        bound = self._rate_bound
-        np.maximum(distance, 0.0, out=bound)
-        bound *= self._rate_2a
-        bound += self._rate_s2
-        np.sqrt(bound, out=bound)
-        bound -= self._rate_s
-        bound += self._rate_free
-        return bound
 
     def _ramp(self, distance: FloatArray, bound: FloatArray, keep: np.ufunc, sign: float) -> None:
         """``bound ← keep(bound, sign·q̇_max·clip((sign·distance − d0)/(d1 − d0), 0, 1))``."""

@@ -30,6 +30,18 @@ ideal plant the gap is 0, the torque ratio NaN and the counts 0):
 * ``filter_switches``: how often the filters' activity flips,
   :math:`\#\{k \ge 1: a_k \ne a_{k-1}\}` with ``a = filter_active`` (e.g. OTMM switching
   on and off under sensor noise); ``status_switches``: the same for the backend status.
+
+The command stream as a streaming interface checks it (:mod:`otmm_qp.plants.interface`), from
+rest (:math:`\dot q_{-1} = \dot q_{-2} = 0`):
+
+* ``max_command_acceleration``: :math:`\max_{k \ge 0, i} |\dot q_{k,i} - \dot q_{k-1,i}|/dt`
+  [rad/s²]; ``max_command_jerk``:
+  :math:`\max_{k \ge 0, i} |\dot q_{k,i} - 2\dot q_{k-1,i} + \dot q_{k-2,i}|/(dt\,p)`
+  [rad/s³], :math:`p = \min(dt, \text{period})` with the interface's period the plant declares
+  (else :math:`p = dt`): the jerk the interface sees of a linearly interpolated command;
+* ``command_acceleration_violations`` / ``command_jerk_violations``: steps on which some joint
+  passes the interface's threshold the plant declares (``RunResult.command_limits``, relative
+  tolerance 10⁻⁹); 0 when it declares none.
 """
 
 from __future__ import annotations
@@ -144,6 +156,26 @@ def compute_metrics(run: RunResult, settings: MetricSettings | None = None) -> M
     out["steps"] = run.steps
     out["completed"] = run.error_message is None
     out.update(plant_metrics(run))
+    out.update(command_metrics(run))
+    return out
+
+
+def command_metrics(run: RunResult) -> Metrics:
+    """Commanded acceleration and jerk, and the steps over the interface's thresholds."""
+    out: Metrics = {}
+    qdot = np.asarray(run.qdot, dtype=float)
+    padded = np.vstack([np.zeros((2, qdot.shape[1])), qdot]) if run.steps else np.zeros((2, 0))
+    acceleration = np.abs(np.diff(padded, axis=0)[1:]) / run.dt  # (N, nv), from rest
+    period = min(run.dt, run.command_limits[2] or run.dt)
+    jerk = np.abs(np.diff(padded, n=2, axis=0)) / (run.dt * period)  # (N, nv)
+    out["max_command_acceleration"] = _safe_max(acceleration)
+    out["max_command_jerk"] = _safe_max(jerk)
+    for name, values, limit in (
+        ("command_acceleration_violations", acceleration, run.command_limits[0]),
+        ("command_jerk_violations", jerk, run.command_limits[1]),
+    ):
+        over = values > np.asarray(limit, dtype=float) * (1.0 + 1e-9) if limit else None
+        out[name] = 0 if over is None else int(np.count_nonzero(np.any(over, axis=1)))
     return out
 
 

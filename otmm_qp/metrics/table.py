@@ -83,6 +83,11 @@ METRICS: tuple[Metric, ...] = (
     Metric("conditioned_steps", "conditioned", "steps", "d", lower_is_better=None),
     Metric("filter_switches", "filter on/off switches", "", "d", lower_is_better=None),
     Metric("status_switches", "status switches", "", "d", lower_is_better=None),
+    # The command stream as the arm's interface sees it (otmm_qp.plants.interface).
+    Metric("max_command_acceleration", "max |q̈_cmd|", "rad/s²"),
+    Metric("max_command_jerk", "max |q⃛_cmd|", "rad/s³"),
+    Metric("command_acceleration_violations", "accel. over interface", "steps", "d"),
+    Metric("command_jerk_violations", "jerk over interface", "steps", "d"),
 )
 
 #: Columns a study row adds to :data:`METRICS`, computed in ``otmm_qp/studies/``:

@@ -8,7 +8,7 @@ import os
 import sys
 import tempfile
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +24,7 @@ from otmm_qp.exceptions import (
     PluginNotFound,
     UnreachableTrajectory,
 )
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.episode import Episode
 from otmm_qp.simulation.recorder import task_position
@@ -255,24 +256,37 @@ def build_controllers(
     return controllers, skipped
 
 
-def dry_run(controller: Controller, episode: Episode) -> None:
+def dry_run(
+    controller: Controller, episode: Episode, declaration: PlantDeclaration | None = None
+) -> None:
     """Take one step with a copy of ``controller`` at the episode's start configuration.
 
     Bad per-controller parameters (e.g. a wrong-length ``acceleration_limit``, a preview
-    horizon the trajectory cannot give or knots that do not fit ``dt``) then fail before any
-    compute; the copy is bound with the episode's ``dt`` and trajectory, the controller itself
-    is left untouched.
+    horizon the trajectory cannot give or knots that do not fit ``dt``, a ``command`` limit
+    reading thresholds its plant does not declare) then fail before any compute; the copy is
+    bound with the episode's ``dt``, trajectory and the plant's ``declaration`` (None: none
+    handed over), the controller itself is left untouched.
     """
     robot = episode.robot
     state = KinematicState.compute(robot, episode.q0, episode.task_weight)
     xdot = np.asarray(episode.trajectory.sample(0.0)[1], dtype=float)
     trial = copy.deepcopy(controller)
+    if declaration is not None:
+        trial.declare_plant(declaration)
     trial.bind(robot, episode.dt, episode.trajectory)
     trial.step(state, xdot, np.zeros(robot.nv))
 
 
-def check_controllers(controllers: list[Controller], episode: Episode, field: str) -> None:
+def check_controllers(
+    controllers: list[Controller],
+    episode: Episode,
+    field: str,
+    declarations: Mapping[str, Sequence[PlantDeclaration]] | None = None,
+) -> None:
     """Dry-run every controller at the episode's start (see :func:`dry_run`).
+
+    Once per plant declaration it will run under (``declarations`` by controller name; none:
+    one dry run without).
 
     A controller whose parameters do not fit the robot fails here. Any other exception (a
     run-time condition such as an infeasible QP, or a plugin failing for its own reasons) is
@@ -285,7 +299,8 @@ def check_controllers(controllers: list[Controller], episode: Episode, field: st
     for j, controller in enumerate(controllers):
         where = f"{field}.controllers.{j} ({controller.name})"
         try:
-            dry_run(controller, episode)
+            for declaration in (declarations or {}).get(controller.name) or (None,):
+                dry_run(controller, episode, declaration)
         except (DimensionError, ConfigError) as error:
             raise ConfigError(where, _short(error)) from None
         except OtmmError:

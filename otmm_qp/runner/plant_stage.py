@@ -6,16 +6,24 @@ suite's (default: ideal); its conditioning from the controller's ``conditioning`
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from otmm_qp.conditioning.pipeline import Conditioning, build_conditioning
 from otmm_qp.config.schema import ControllerConfig, PresetConfig
-from otmm_qp.exceptions import ConfigError, DimensionError
+from otmm_qp.exceptions import ConfigError, DimensionError, OtmmError
 from otmm_qp.plants.chain import PlantChain, build_plant
-from otmm_qp.plants.presets import PRESET_KEY
+from otmm_qp.plants.declaration import PlantDeclaration
+from otmm_qp.plants.presets import LOOKAHEAD_KEY, PRESET_KEY
 from otmm_qp.robots.robot import FloatArray, Robot
 
-__all__ = ["build_stage", "check_conditioning", "check_plant", "plant_record"]
+__all__ = [
+    "build_stage",
+    "check_conditioning",
+    "check_plant",
+    "plant_declarations",
+    "plant_record",
+]
 
 
 def build_stage(config: ControllerConfig) -> tuple[PlantChain, Conditioning]:
@@ -31,6 +39,8 @@ def plant_record(spec: Any) -> Any:
     if isinstance(spec, list):
         return [plant_record(s) for s in spec]
     if isinstance(spec, PresetConfig):
+        if spec.lookahead is not None:
+            return {PRESET_KEY: spec.preset, LOOKAHEAD_KEY: spec.lookahead}
         return {PRESET_KEY: spec.preset}
     return dict(spec.params, type=spec.type)
 
@@ -117,6 +127,20 @@ def check_conditioning(
             raise ConfigError(f"{where}.{error.field}".rstrip("."), error.message) from None
         except DimensionError as error:
             raise ConfigError(where, str(error)) from None
+
+
+def plant_declarations(records: Iterable[Any], dt: float) -> list[PlantDeclaration]:
+    """What each plant record declares at the period ``dt`` [s] (for the controllers' dry run).
+
+    A record that does not build is left out: :func:`check_plant` names its fault.
+    """
+    declared = []
+    for record in records:
+        try:
+            declared.append(build_plant(record).declares(dt))
+        except (OtmmError, ValueError, TypeError):
+            continue
+    return declared
 
 
 def experiment_stages(

@@ -10,6 +10,7 @@ every controller on a copy. :func:`prepare_experiment` is both for one experimen
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,6 +19,7 @@ from otmm_qp.config.schema import ExperimentConfig, SuiteConfig
 from otmm_qp.controller import Controller
 from otmm_qp.exceptions import ConfigError, DimensionError
 from otmm_qp.plants.chain import PlantChain, build_plant
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.runner.build import (
     SkippedController,
@@ -29,7 +31,7 @@ from otmm_qp.runner.build import (
     load_robot,
     start_configuration,
 )
-from otmm_qp.runner.plant_stage import experiment_stages
+from otmm_qp.runner.plant_stage import experiment_stages, plant_declarations
 from otmm_qp.simulation.episode import Episode, Loop
 from otmm_qp.simulation.loop_modes import LoopMode
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -128,7 +130,12 @@ def make_episode(
 
 
 def prepare(
-    episode: Episode, controllers: list[Controller], field_path: str, *, reachable: bool = True
+    episode: Episode,
+    controllers: list[Controller],
+    field_path: str,
+    *,
+    reachable: bool = True,
+    declarations: Mapping[str, Sequence[PlantDeclaration]] | None = None,
 ) -> None:
     """Every check that needs the built objects, before any compute.
 
@@ -137,6 +144,8 @@ def prepare(
         controllers: Controllers that will run it (each dry-run once on a copy).
         field_path: Config path named in errors.
         reachable: Also require every trajectory sample inside the workspace.
+        declarations: What the plants each controller runs under declare, by controller
+            name (handed to its dry run); None: nothing declared.
 
     Raises:
         ConfigError: Non-finite kinematics or NaN limits, an unreachable trajectory, or a
@@ -147,7 +156,7 @@ def prepare(
         check_reachable(
             episode.robot, episode.trajectory, episode.duration, f"{field_path}.trajectory"
         )
-    check_controllers(controllers, episode, field_path)
+    check_controllers(controllers, episode, field_path, declarations)
 
 
 def prepare_experiment(
@@ -188,11 +197,17 @@ def prepare_experiment(
         for mode in (config.loop_modes or suite.loop_modes)
     )
     controllers, skipped = build_controllers(config, field_path, suite.metrics.blow_up_speed)
-    # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
-    prepare(episodes[0], controllers, field_path, reachable=not config.out_of_reach)
     plants, conditioning = experiment_stages(
         config.plant if config.plant is not None else suite.plant,
         config.controllers, robot, episodes[0].q0, episodes[0].dt, field_path,
         (max(e.steps for e in episodes), episodes[0].max_steps),
+    )  # fmt: skip
+    declarations = {
+        name: plant_declarations([record], episodes[0].dt) for name, record in plants.items()
+    }
+    # out_of_reach: the config knows the trajectory leaves the workspace (a study's task)
+    prepare(
+        episodes[0], controllers, field_path, reachable=not config.out_of_reach,
+        declarations=declarations,
     )  # fmt: skip
     return PreparedExperiment(config, episodes, controllers, skipped, plants, conditioning)

@@ -9,6 +9,7 @@ import numpy as np
 from otmm_qp.conditioning.pipeline import Conditioning
 from otmm_qp.controller import Controller, ControllerOutput
 from otmm_qp.plants.chain import PlantChain
+from otmm_qp.plants.declaration import PlantDeclaration
 from otmm_qp.plants.plant import PlantStep
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.run_result import RunResult
@@ -146,4 +147,16 @@ class RunRecorder:
             conditioned=self.conditioned[:done],
             plant=plant.label(),
             conditioning=conditioning.label(),
+            command_limits=_command_limits(plant.declares(dt)),
         )
+
+
+def _command_limits(
+    declaration: PlantDeclaration,
+) -> tuple[tuple[float, ...], tuple[float, ...], float]:
+    """The interface thresholds of a plant's declaration (``RunResult.command_limits``)."""
+    return (
+        declaration.interface_acceleration,
+        declaration.interface_jerk,
+        declaration.interface_period,
+    )

@@ -46,6 +46,10 @@ class RunResult:
         conditioned: Whether a conditioning stage changed the command, ``(N,)``.
         plant: Label of the plant (``ideal`` by default).
         conditioning: Label of the conditioning stages (``none`` by default).
+        command_limits: The interface's thresholds on the command stream the plant declares
+            (:mod:`otmm_qp.plants.interface`): ``(acceleration [rad/s²], jerk [rad/s³],
+            the interface's period [s] (0: the control period))``, the first two each empty
+            (none), one value or one per joint.
     """
 
     experiment: str
@@ -81,6 +85,7 @@ class RunResult:
     conditioned: np.ndarray | None = None
     plant: str = "ideal"
     conditioning: str = "none"
+    command_limits: tuple[tuple[float, ...], tuple[float, ...], float] = ((), (), 0.0)
 
     @property
     def actual_qdot(self) -> FloatArray:

@@ -25,8 +25,10 @@ then replaces it. A robot without velocity limits has no default speed bound.
 
 Failure causes (:data:`FAILURE_CAUSES`): ``error`` (tolerance or graceful error bound),
 ``speed``, ``position_limit``, ``blow_up``, ``stuck`` (the episode stopped before its end),
-``chatter`` (unachievable tasks only) and ``run_error`` (no episode: task generation or
-controller build failed).
+``chatter`` (unachievable tasks only), ``interface_abort`` (the commanded acceleration or jerk
+passed the thresholds the plant's interface declares, :mod:`otmm_qp.plants.interface`: the arm
+would have aborted the motion) and ``run_error`` (no episode: task generation or controller
+build failed).
 """
 
 from __future__ import annotations
@@ -51,7 +53,13 @@ FAILURE_CAUSES: tuple[str, ...] = (
     "blow_up",
     "stuck",
     "chatter",
+    "interface_abort",
     "run_error",
+)
+#: Steps over the interface's thresholds (``interface_abort``, :mod:`otmm_qp.plants.interface`).
+INTERFACE_COLUMNS: tuple[str, ...] = (
+    "command_acceleration_violations",
+    "command_jerk_violations",
 )
 #: Row columns added by :func:`speed_ratios` (rows of :data:`~otmm_qp.metrics.table.STUDY_METRICS`).
 RATIO_COLUMNS: tuple[str, ...] = tuple(
@@ -154,4 +162,6 @@ def failure_causes(row: dict[str, Any], criteria: SuccessCriteria) -> tuple[str,
         number(row, "max_jump_ratio"), criteria.graceful.max_jump_factor
     ):
         causes.append("chatter")
+    if any(int(row.get(name) or 0) > 0 for name in INTERFACE_COLUMNS):
+        causes.append("interface_abort")  # the arm's interface would have aborted the motion
     return tuple(causes)

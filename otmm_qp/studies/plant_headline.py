@@ -4,9 +4,11 @@ From the episode rows of a study with a ``plants`` axis (controllers named
 ``controller@plant``), per plant and base controller:
 
 * success rate [%] and the rank by success rate (ties broken by the median max error);
-* median max position error [m], median peak commanded joint speed [rad/s], median
-  ``filter_switches`` (mean) and, for the MuJoCo plant, the median ``peak_torque_ratio`` and the
-  share of episodes with a saturated torque;
+* median max position error [m], median peak commanded joint speed [rad/s], median peak
+  commanded jerk [rad/s³] (``max_command_jerk``), the episodes the arm's interface would abort
+  (``interface_abort``: a commanded acceleration or jerk past the thresholds the plant declares,
+  :mod:`otmm_qp.plants.interface`), median ``filter_switches`` (mean) and, for the MuJoCo plant,
+  the median ``peak_torque_ratio`` and the share of episodes with a saturated torque;
 * against the ideal plant on the same tasks: the paired Wilcoxon signed-rank test of the max
   error (Holm-corrected over every controller × plant pair) and the Spearman correlation
   :math:`\rho` of the plant's ranking with the ideal ranking.
@@ -14,7 +16,9 @@ From the episode rows of a study with a ``plants`` axis (controllers named
 When the study has both ``qp`` and ``qp-box`` (``qp`` with today's position box), a second
 table pairs them per plant on the same tasks (:func:`limit_cost`): episodes with a position-limit
 violation, success rates with the exact McNemar test, and the paired Wilcoxon test of the max
-error, both Holm-corrected over the plants.
+error, both Holm-corrected over the plants. ``--pair NEW OLD`` (rows ``controller@plant``)
+adds the same comparison for any two rows of the study (:func:`pair_cost`), with the episodes
+the arm's interface would abort.
 
 Run as ``otmm-qp study plants RESULTS_DIR`` (prints Markdown).
 """
@@ -30,22 +34,29 @@ import numpy as np
 from scipy import stats
 
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.studies.criteria import INTERFACE_COLUMNS
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
 from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
 
-__all__ = ["headline", "limit_cost", "main", "plant_rows"]
+__all__ = ["headline", "limit_cost", "main", "pair_cost", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
     "max_joint_speed", "filter_switches", "peak_torque_ratio", "saturated_steps",
-    "position_violations",
+    "position_violations", "max_command_jerk", "command_acceleration_violations",
+    "command_jerk_violations",
 ]  # fmt: skip
 
 
 def _median(values: list[float]) -> float:
     finite = [v for v in values if v is not None and math.isfinite(v)]
     return float(np.median(finite)) if finite else math.nan
+
+
+def _aborted(row: dict[str, Any]) -> bool:
+    """Whether the arm's interface would have aborted the episode (a threshold passed)."""
+    return any(int(row.get(name) or 0) > 0 for name in INTERFACE_COLUMNS)
 
 
 def _ranks(rate: dict[str, float], error: dict[str, float]) -> dict[str, int]:
@@ -93,9 +104,9 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
     lines = [
         "| plant | controller | rank | success % | median max error [m] | Δ error vs "
         f"{reference}: tasks where {reference} is lower / tied / higher, Holm p | "
-        "median peak speed [rad/s] | "
+        "median peak speed [rad/s] | median peak jerk [rad/s³] | interface aborts | "
         "mean filter switches | median peak τ/τ_max | saturated episodes % |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|",
+        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|",
     ]
     for p in plants:
         for c in controllers:
@@ -109,6 +120,8 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
             lines.append(
                 f"| {p} | {c} | {ranks[p][c]} | {rate[p, c]:.0f} | {error[p, c]:.3g} | {versus} "
                 f"| {_median([r['max_joint_speed'] for r in group]):.3g} "
+                f"| {_median([r.get('max_command_jerk', math.nan) for r in group]):.3g} "
+                f"| {sum(1 for r in group if _aborted(r))} "
                 f"| {float(np.mean([r['filter_switches'] or 0 for r in group])):.2f} "
                 f"| {'—' if math.isnan(ratio) else f'{ratio:.2f}'} "
                 f"| {'—' if math.isnan(ratio) else f'{saturated:.0f}'} |"
@@ -186,6 +199,61 @@ def limit_cost(rows: list[dict[str, Any]], new: str = "qp", old: str = "qp-box")
         lines.append(
             f"| {p} | {violations[0]} / {violations[1]} | {percent[0]:.0f} / {percent[1]:.0f} | "
             f"{r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
+            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
+    """Markdown: each ``(new, old)`` pair of rows (``controller@plant``) on the same tasks.
+
+    Per pair: episodes the arm's interface would abort and episodes past a position limit
+    (new / old), success rates with the exact McNemar test and the paired Wilcoxon test of the
+    max error, both Holm-corrected over the pairs. ``new`` and ``old`` may run under different
+    plants (e.g. ``qp-cmd@franka_fci_raw`` against ``qp@franka_fci``).
+
+    Raises:
+        ConfigError: A named row that the study does not hold.
+    """
+    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
+    by: dict[str, dict[Any, dict[str, Any]]] = {}
+    for row in rows:
+        by.setdefault(str(row["controller"]), {})[key(row)] = row
+    for name in (name for pair in pairs for name in pair):
+        if name not in by:
+            raise ConfigError("--pair", f"no rows {name!r:.60}; have: {', '.join(sorted(by))}")
+    rates, errors = [], []
+    counts: list[tuple[tuple[int, int, float], tuple[int, int, float], int]] = []
+    for new, old in pairs:
+        tasks = sorted(set(by[new]) & set(by[old]), key=str)
+        a, b = [by[new][t] for t in tasks], [by[old][t] for t in tasks]
+        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
+        rates.append(mcnemar_exact(new, old, success[0], success[1]))
+        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
+        errors.append(paired_test(new, old, maxima[0], maxima[1]))
+        tallies = [
+            (
+                sum(_aborted(r) for r in x),
+                sum((r["position_violations"] or 0) > 0 for r in x),
+                100.0 * float(np.mean(success[i])),
+            )
+            for i, x in enumerate((a, b))
+        ]
+        counts.append((tallies[0], tallies[1], len(tasks)))
+    p_rates = holm([r.p_value for r in rates])
+    p_errors = holm([t.p_value for t in errors])
+    lines = [
+        "| new / old | tasks | interface aborts | past a position limit | success % | tasks "
+        "only new / only old succeeds, Holm p | max error: tasks new lower / tied / higher, "
+        "Holm p |",
+        "|---|---:|---:|---:|---:|---|---|",
+    ]
+    for i, (new, old) in enumerate(pairs):
+        (abort_a, past_a, rate_a), (abort_b, past_b, rate_b), count = counts[i]
+        r, t = rates[i], errors[i]
+        lines.append(
+            f"| {new} / {old} | {count} | {abort_a} / {abort_b} | {past_a} / {past_b} | "
+            f"{rate_a:.0f} / {rate_b:.0f} | {r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
             f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
         )
     return "\n".join(lines) + "\n"

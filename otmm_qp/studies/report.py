@@ -478,7 +478,8 @@ def _cause_table(rows: Rows, robot: str) -> list[Item]:
         "Episodes failing each criterion (an episode can fail several): *error* = tolerance "
         "(achievable tasks) or graceful error bound (unachievable), *speed* = speed bound, "
         "*position_limit* = a joint left its limits, *blow_up*, *stuck* = stopped early, "
-        "*chatter* (unachievable tasks), *run_error* = never ran.",
+        "*chatter* (unachievable tasks), *interface_abort* = the commanded acceleration or "
+        "jerk passed the arm interface's thresholds, *run_error* = never ran.",
         "",
         "| controller | generator | episodes | success | " + " | ".join(FAILURE_CAUSES) + " |",
         "|---|---|---|---|" + "---|" * len(FAILURE_CAUSES),

@@ -383,10 +383,23 @@ def check_plugins(
             raise ConfigError(f"{field}: {where}", error.message) from None
         except OtmmError as error:
             raise ConfigError(field, str(error)) from None
-        prepare(episode, built, f"{source}: robots.{i}", reachable=False)
+        prepare(
+            episode, built, f"{source}: robots.{i}", reachable=False,
+            declarations=_declarations(config, controllers),
+        )  # fmt: skip
         longest = max(step_count(made.duration, config.dt) for made in tasks)
         _check_stages(config, controllers, robot, episode.q0, (longest, config.max_steps), source)
     return skipped, descriptors
+
+
+def _declarations(config: StudyConfig, controllers: list[ControllerConfig]) -> dict[str, list[Any]]:
+    """What the plants each controller runs under declare (the ``plants`` axis, else its own)."""
+    from otmm_qp.runner.plant_stage import plant_declarations, plant_record
+
+    if config.plants is not None:
+        axis = plant_declarations([plant_record(p.plant) for p in config.plants], config.dt)
+        return {c.name: axis for c in controllers}
+    return {c.name: plant_declarations([plant_record(c.plant)], config.dt) for c in controllers}
 
 
 def _check_stages(

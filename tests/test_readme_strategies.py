@@ -48,7 +48,7 @@ def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:
     printed = tmp_path / "kinds.md"
     verdict = ["study", "verdict", str(out), "--ours", "sigma_lm", "--kinds"]
     assert main([*verdict, "--out", str(printed)]) == 0
-    table = printed.read_text(encoding="utf-8").strip().split("\n\n", 1)[1].splitlines()
+    table = _readme_table(printed.read_text(encoding="utf-8"))
     assert _readme_table(section) == table
 
     # The sentences: sizes, and what the fronts say.

@@ -31,7 +31,7 @@ def _readme_section() -> str:
 
 def _readme_table(section: str) -> list[str]:
     start = section.index("| task kind (tasks) |")
-    return section[start : section.index("\n\n", start)].splitlines()
+    return f"{section}\n\n"[start : f"{section}\n\n".index("\n\n", start)].splitlines()
 
 
 def test_readme_strategies_table_is_regenerated(tmp_path: Path, capsys) -> None:

@@ -94,6 +94,12 @@ class PreviewBackend(BoxQpBackend):
             clipped into the relaxed box), as the ``qp`` backend.
         fast_path: Skip the solver when the last step's active bounds, or none, give a point
             meeting the KKT conditions (one Cholesky) — then it is the QP's optimum.
+        working_set: Keep the last optimum's active rows too (the same QP, the same optimum,
+            less work): the fast path tries the whole active set, bounds and rows
+            (:meth:`PreviewProblem.with_active_set`), and the solver sees only the working
+            rows — those active at the last optimum and those the nominal breaks — adding the
+            rows its answer breaks until it breaks none (then it is the whole QP's optimum:
+            a relaxation's optimum that meets every row).
 
     Raises:
         ParameterError: A parameter out of range (at construction), or a knot layout that
@@ -119,6 +125,7 @@ class PreviewBackend(BoxQpBackend):
         "limits": [LIMITS, None],
         "infeasible_policy": OneOf(*policies),
         "fast_path": Boolean(),
+        "working_set": Boolean(),
     }
 
     def __init__(
@@ -137,10 +144,12 @@ class PreviewBackend(BoxQpBackend):
         fast_path: bool = True,
         peak: float = 0.0,
         peak_jump: float = 0.0,
+        working_set: bool = False,
     ) -> None:
         check_params(self, locals())
         super().__init__(solver, make_limits(limits), infeasible_policy)
         self.fast_path = bool(fast_path)
+        self.working_set = bool(working_set)
         self.horizon = float(horizon)
         self.knots = int(knots)
         self.fine_steps = int(fine_steps)
@@ -208,6 +217,7 @@ class PreviewBackend(BoxQpBackend):
         super().reset()
         self._k = 0
         self._active: tuple[BoolArray, BoolArray] | None = None
+        self._working: ActiveSet | None = None
         self._peak = 0.0
         self._peak_jump = 0.0
         if hasattr(self, "_plan"):
@@ -282,7 +292,13 @@ class PreviewBackend(BoxQpBackend):
             self._jacobians, self._residuals, nominal, qdot_prev, bounds,
             self._speed, room, self._peak, self._peak_jump,
         )  # fmt: skip
-        solution = yield from self._solve(problem)
+        if self.working_set:
+            floors = (self._peak, self._peak_jump)[: problem.q.shape[0] - plan.size]
+            solution = yield from self._solve_working_set(
+                problem, np.concatenate([plan.reshape(-1), floors])
+            )
+        else:
+            solution = yield from self._solve(problem)
         settled = None if solution.x is None else clip_into_box(
             solution.x[: self.robot.nv], bounds, SOLVER_TOL
         )  # fmt: skip
@@ -329,6 +345,57 @@ class PreviewBackend(BoxQpBackend):
         solution = self.session.solve()
         if solution.x is not None:
             self._active = qp.active_bounds(solution.x)
+        return solution
+
+    def _solve_working_set(
+        self, problem: QpProblem, nominal: FloatArray
+    ) -> Generator[None, None, Solution]:
+        """The ``working_set`` solve: the warm active set, else the solver on working rows.
+
+        First the last optimum's active set (bounds and rows) advanced by one segment, then as
+        it was, then the unconstrained minimiser (each KKT-checked, one slice each); else the
+        session on the rows active at the last optimum or broken by ``nominal`` (the shifted
+        plan with the epigraph variables at their floors, shape ``(n,)``), adding the rows its
+        answer breaks and solving again until it breaks none. The active set of whatever is
+        accepted is the next guess.
+        """
+        qp = self._qp
+        guess = self._working
+        if self.fast_path:
+            if guess is not None:
+                nv, plan = self.robot.nv, qp.grid.count * self.robot.nv
+                advanced = ActiveSet(
+                    _advanced(guess.lower, nv, plan),
+                    _advanced(guess.upper, nv, plan),
+                    qp.advance_rows(guess.rows_lower),
+                    qp.advance_rows(guess.rows_upper),
+                )
+                for candidate in (advanced, guess):
+                    yield
+                    x = qp.with_active_set(*candidate)
+                    if x is not None:
+                        self._working = ActiveSet(*qp.active_bounds(x), *qp.active_rows(x))
+                        return Solution(x, True, "last active set optimal")
+            yield
+            x = qp.unconstrained()
+            if x is not None:
+                self._working = None
+                return Solution(x, True, "unconstrained minimiser feasible")
+        rows = qp.violated_rows(nominal)
+        if guess is not None:
+            rows |= guess.rows_lower | guess.rows_upper
+        while True:
+            yield
+            self.session.load(problem.with_rows(rows))
+            yield
+            solution = self.session.solve()
+            if solution.x is None:
+                return solution
+            broken = qp.violated_rows(solution.x)
+            if not broken.any():
+                break
+            rows |= broken
+        self._working = ActiveSet(*qp.active_bounds(solution.x), *qp.active_rows(solution.x))
         return solution
 
     def _linearise(
@@ -378,6 +445,15 @@ def run_slices(job: Generator[None, None, BackendOutput]) -> BackendOutput:
             next(job)
         except StopIteration as done:
             return done.value
+
+
+class ActiveSet(NamedTuple):
+    """An active set of the preview QP: bounds and rows held at each side (bool masks)."""
+
+    lower: BoolArray
+    upper: BoolArray
+    rows_lower: BoolArray
+    rows_upper: BoolArray
 
 
 def _advanced(mask: BoolArray, nv: int, plan: int) -> BoolArray:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -133,3 +134,39 @@ def test_with_rows_keeps_the_chosen_rows_and_shares_the_rest() -> None:
 def test_working_set_must_be_a_boolean() -> None:
     with pytest.raises(ParameterError, match="working_set"):
         PreviewBackend(working_set="yes")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_the_deployable_studies_judge_the_benchs_row_on_the_crossing_tasks(arm: str) -> None:
+    """ONE preview row per study, the bench's deployable row (same parameters); at the shipped
+    speed the crossing study's tasks, at the faster speed its joint paths (same seeds: the same
+    paths) with durations 1.0-1.8 s instead of 1.5-2.5 s."""
+    import yaml
+
+    from otmm_qp.bench.pipelines import DEPLOYABLE, PREVIEWS
+    from otmm_qp.studies.spec import load_study, plan_study
+
+    root = Path(__file__).parent.parent / "configs" / "studies"
+    crossing = plan_study(load_study(root / f"preview_crossings_{arm}.yaml"), "crossing")
+    bench = next(params for label, _, params in PREVIEWS if label == DEPLOYABLE)
+    plans = {}
+    for speed in ("", "fast_"):
+        path = root / f"preview_deployable_{speed}{arm}.yaml"
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        previews = [row for row in data["controllers"] if row["name"].startswith("preview")]
+        assert [row["name"] for row in previews] == ["preview-minmax-k8"]
+        backend = {k: v for k, v in previews[0]["backend"].items() if k != "type"}
+        assert backend == {k: v for k, v in bench.items() if k != "infeasible_policy"} | {
+            "solver": "daqp"
+        }
+        durations = {tuple(g["duration"]) for g in data["generators"]}
+        assert durations == ({(1.5, 2.5)} if not speed else {(1.0, 1.8)})
+        plans[speed] = plan_study(load_study(path), path.name)
+    shipped, fast = plans[""], plans["fast_"]
+    assert len(shipped.episodes) == 84 * 10 and len(fast.episodes) == 44 * 10
+
+    def tasks(plan, generator):  # type: ignore[no-untyped-def]
+        return sorted({(e.task_index, e.seed) for e in plan.episodes if e.generator == generator})
+
+    assert tasks(shipped, 0) == tasks(crossing, 0) and tasks(shipped, 1) == tasks(crossing, 1)
+    assert tasks(fast, 0) == tasks(crossing, 1)  # the joint paths, same seeds

@@ -312,8 +312,8 @@ class PreviewProblem:
         rows = self._position_rows
         if rows.stop:
             room = np.clip(position_room, -BIG, BIG)
-            problem.l[rows] = np.tile(room[0], count - 1)
-            problem.u[rows] = np.tile(room[1], count - 1)
+            problem.l[rows].reshape(count - 1, nv)[:] = room[0]  # a view: every knot's rows
+            problem.u[rows].reshape(count - 1, nv)[:] = room[1]
         return problem
 
     def unconstrained(self) -> FloatArray | None:

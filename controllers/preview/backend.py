@@ -355,9 +355,9 @@ class PreviewBackend(BoxQpBackend):
         First the last optimum's active set (bounds and rows) advanced by one segment, then as
         it was, then the unconstrained minimiser (each KKT-checked, one slice each); else the
         session on the rows active at the last optimum or broken by ``nominal`` (the shifted
-        plan with the epigraph variables at their floors, shape ``(n,)``), adding the rows its
-        answer breaks and solving again until it breaks none. The active set of whatever is
-        accepted is the next guess.
+        plan with the epigraph variables at their floors, shape ``(n,)``), adding the dropped
+        rows its answer breaks (by more than ``SOLVER_TOL`` relative) and solving again until
+        it breaks none. The active set of whatever is accepted is the next guess.
         """
         qp = self._qp
         guess = self._working
@@ -391,7 +391,9 @@ class PreviewBackend(BoxQpBackend):
             solution = self.session.solve()
             if solution.x is None:
                 return solution
-            broken = qp.violated_rows(solution.x)
+            # Only dropped rows are added (the working rows are the solver's, met to its
+            # tolerance): every pass adds one at least, so at most m passes.
+            broken = qp.violated_rows(solution.x, SOLVER_TOL) & ~rows
             if not broken.any():
                 break
             rows |= broken

@@ -354,8 +354,9 @@ class PreviewBackend(BoxQpBackend):
 
         First the last optimum's active set (bounds and rows) advanced by one segment, then as
         it was, then the unconstrained minimiser (each KKT-checked, one slice each); else the
-        session on the rows active at the last optimum or broken by ``nominal`` (the shifted
-        plan with the epigraph variables at their floors, shape ``(n,)``), adding the dropped
+        session on the position rows and the rows active at the last optimum or broken by
+        ``nominal`` (the shifted plan with the epigraph variables at their floors, shape
+        ``(n,)``), adding the dropped
         rows its answer breaks (by more than ``SOLVER_TOL`` relative) and solving again until
         it breaks none. The active set of whatever is accepted is the next guess.
         """
@@ -382,6 +383,7 @@ class PreviewBackend(BoxQpBackend):
                 self._working = None
                 return Solution(x, True, "unconstrained minimiser feasible")
         rows = qp.violated_rows(nominal)
+        rows[qp.position_rows] = True  # the hard limits; the epigraph rows are mostly slack
         if guess is not None:
             rows |= guess.rows_lower | guess.rows_upper
         while True:

@@ -482,6 +482,11 @@ class PreviewProblem:
             values > problem.u + tol * (1.0 + np.abs(problem.u))
         )
 
+    @property
+    def position_rows(self) -> slice:
+        """The rows of the future knots' position box (empty without a position limit)."""
+        return self._position_rows
+
     def advance_rows(self, mask: BoolArray) -> BoolArray:
         """A per-row mask advanced by one segment, as the plan is (the last knot's kept)."""
         moved = mask.copy()

@@ -399,7 +399,10 @@ class PreviewBackend(BoxQpBackend):
             if not broken.any():
                 break
             rows |= broken
-        self._working = ActiveSet(*qp.active_bounds(solution.x), *qp.active_rows(solution.x))
+        x = solution.x
+        # The guess's bounds serve the fast path only; the working rows need the rows alone.
+        bounds = qp.active_bounds(x) if self.fast_path else (_NONE, _NONE)
+        self._working = ActiveSet(*bounds, *qp.active_rows(x))
         return solution
 
     def _linearise(
@@ -449,6 +452,10 @@ def run_slices(job: Generator[None, None, BackendOutput]) -> BackendOutput:
             next(job)
         except StopIteration as done:
             return done.value
+
+
+#: An empty mask: the bounds of a working set kept without the fast path.
+_NONE = np.zeros(0, dtype=bool)
 
 
 class ActiveSet(NamedTuple):

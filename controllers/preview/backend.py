@@ -401,8 +401,8 @@ class PreviewBackend(BoxQpBackend):
             rows |= broken
         x = solution.x
         # The guess's bounds serve the fast path only; the working rows need the rows alone.
-        bounds = qp.active_bounds(x) if self.fast_path else (_NONE, _NONE)
-        self._working = ActiveSet(*bounds, *qp.active_rows(x))
+        lower, upper = qp.active_bounds(x) if self.fast_path else (_NONE, _NONE)
+        self._working = ActiveSet(lower, upper, *qp.active_rows(x))
         return solution
 
     def _linearise(

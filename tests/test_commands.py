@@ -157,6 +157,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_plant.py",  # test_plant_runs.py
         "bench_instructions.py",
         "bench_preview_cpu.py",  # test_qp_bench.py
+        "profile_preview.py",  # test_qp_bench.py
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

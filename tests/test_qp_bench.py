@@ -50,5 +50,28 @@ def test_bench_preview_cpu_prints_every_preview_row(capsys: pytest.CaptureFixtur
     rows = [line for line in out.splitlines() if line.startswith("| ") and "µs" not in line]
     assert len(rows) == 1 + len(PREVIEWS)
     for line in rows:
-        median, p99, worst = (float(cell) for cell in line.split("|")[2:5])
+        median, p99, worst, wall_median, wall_p99 = (float(c) for c in line.split("|")[2:7])
         assert 0 < median <= p99 <= worst
+        assert 0 < wall_median <= wall_p99
+    assert "preview-minmax-k8 (deployable): CPU median" in out
+
+
+def test_profile_preview_charges_every_phase_once(capsys: pytest.CaptureFixture[str]) -> None:
+    """The phases' times are disjoint: with what is left they make up the step's CPU time."""
+    from otmm_qp.bench.pipelines import DEPLOYABLE
+
+    module = _script(SCRIPT.with_name("profile_preview.py"))
+    assert module.main(["--row", DEPLOYABLE, "--steps", "12", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    head, *lines = out.splitlines()
+    per_step = float(head.split(" steps, ")[1].split(" µs")[0])
+    cells = {
+        line.split("|")[1].strip(): float(line.split("|")[2])
+        for line in lines
+        if line.startswith("| ") and "µs" not in line
+    }
+    for phase in ("knots' FK + Jacobians", "QP assembly (Hessian, gradient)", "solver solve"):
+        assert cells[phase] > 0, phase
+    rest = cells.pop("the rest (state, filters, shift, clip, Python)")
+    assert rest >= -1  # rounding of the printed µs
+    assert abs(sum(cells.values()) + rest - per_step) <= len(cells) + 1

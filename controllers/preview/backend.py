@@ -97,6 +97,12 @@ class PreviewBackend(BoxQpBackend):
             clipped into the relaxed box), as the ``qp`` backend.
         fast_path: Skip the solver when the last step's active bounds, or none, give a point
             meeting the KKT conditions (one Cholesky) — then it is the QP's optimum.
+        working_set: Keep the last optimum's active rows too (the same QP, the same optimum,
+            less work): the fast path tries the whole active set, bounds and rows
+            (:meth:`PreviewProblem.with_active_set`), and the solver sees only the working
+            rows — those active at the last optimum and those the nominal breaks — adding the
+            rows its answer breaks until it breaks none (then it is the whole QP's optimum:
+            a relaxation's optimum that meets every row).
 
     Raises:
         ParameterError: A parameter out of range (at construction), or a knot layout that
@@ -122,6 +128,7 @@ class PreviewBackend(BoxQpBackend):
         "limits": [LIMITS, None],
         "infeasible_policy": OneOf(*policies),
         "fast_path": Boolean(),
+        "working_set": Boolean(),
     }
 
     def __init__(
@@ -140,10 +147,12 @@ class PreviewBackend(BoxQpBackend):
         fast_path: bool = True,
         peak: float = 0.0,
         peak_jump: float = 0.0,
+        working_set: bool = False,
     ) -> None:
         check_params(self, locals())
         super().__init__(solver, make_limits(limits), infeasible_policy)
         self.fast_path = bool(fast_path)
+        self.working_set = bool(working_set)
         self.horizon = float(horizon)
         self.knots = int(knots)
         self.fine_steps = int(fine_steps)
@@ -211,6 +220,7 @@ class PreviewBackend(BoxQpBackend):
         super().reset()
         self._k = 0
         self._active: tuple[BoolArray, BoolArray] | None = None
+        self._working: ActiveSet | None = None
         self._peak = 0.0
         self._peak_jump = 0.0
         if hasattr(self, "_plan"):
@@ -285,7 +295,13 @@ class PreviewBackend(BoxQpBackend):
             self._jacobians, self._residuals, nominal, qdot_prev, bounds,
             self._speed, room, self._peak, self._peak_jump,
         )  # fmt: skip
-        solution = yield from self._solve(problem)
+        if self.working_set:
+            floors = (self._peak, self._peak_jump)[: problem.q.shape[0] - plan.size]
+            solution = yield from self._solve_working_set(
+                problem, np.concatenate([plan.reshape(-1), floors])
+            )
+        else:
+            solution = yield from self._solve(problem)
         settled = None if solution.x is None else clip_into_box(
             solution.x[: self.robot.nv], bounds, SOLVER_TOL
         )  # fmt: skip
@@ -339,6 +355,64 @@ class PreviewBackend(BoxQpBackend):
             self._active = qp.active_bounds(solution.x)
         return solution
 
+    def _solve_working_set(
+        self, problem: QpProblem, nominal: FloatArray
+    ) -> Generator[None, None, Solution]:
+        """The ``working_set`` solve: the warm active set, else the solver on working rows.
+
+        First the last optimum's active set (bounds and rows) advanced by one segment, then as
+        it was, then the unconstrained minimiser (each KKT-checked, one slice each); else the
+        session on the position rows and the rows active at the last optimum or broken by
+        ``nominal`` (the shifted plan with the epigraph variables at their floors, shape
+        ``(n,)``), adding the dropped
+        rows its answer breaks (by more than ``SOLVER_TOL`` relative) and solving again until
+        it breaks none. The active set of whatever is accepted is the next guess.
+        """
+        qp = self._qp
+        guess = self._working
+        if self.fast_path:
+            if guess is not None:
+                nv, plan = self.robot.nv, qp.grid.count * self.robot.nv
+                advanced = ActiveSet(
+                    _advanced(guess.lower, nv, plan),
+                    _advanced(guess.upper, nv, plan),
+                    qp.advance_rows(guess.rows_lower),
+                    qp.advance_rows(guess.rows_upper),
+                )
+                for candidate in (advanced, guess):
+                    yield
+                    x = qp.with_active_set(*candidate)
+                    if x is not None:
+                        self._working = ActiveSet(*qp.active_bounds(x), *qp.active_rows(x))
+                        return Solution(x, True, "last active set optimal")
+            yield
+            x = qp.unconstrained()
+            if x is not None:
+                self._working = None
+                return Solution(x, True, "unconstrained minimiser feasible")
+        rows = qp.violated_rows(nominal)
+        rows[qp.position_rows] = True  # the hard limits; the epigraph rows are mostly slack
+        if guess is not None:
+            rows |= guess.rows_lower | guess.rows_upper
+        while True:
+            yield
+            self.session.load(problem.with_rows(rows))
+            yield
+            solution = self.session.solve()
+            if solution.x is None:
+                return solution
+            # Only dropped rows are added (the working rows are the solver's, met to its
+            # tolerance): every pass adds one at least, so at most m passes.
+            broken = qp.violated_rows(solution.x, SOLVER_TOL) & ~rows
+            if not broken.any():
+                break
+            rows |= broken
+        x = solution.x
+        # The guess's bounds serve the fast path only; the working rows need the rows alone.
+        lower, upper = qp.active_bounds(x) if self.fast_path else (_NONE, _NONE)
+        self._working = ActiveSet(lower, upper, *qp.active_rows(x))
+        return solution
+
     def _linearise(
         self,
         state: KinematicState,
@@ -386,6 +460,19 @@ def run_slices(job: Generator[None, None, BackendOutput]) -> BackendOutput:
             next(job)
         except StopIteration as done:
             return done.value
+
+
+#: An empty mask: the bounds of a working set kept without the fast path.
+_NONE = np.zeros(0, dtype=bool)
+
+
+class ActiveSet(NamedTuple):
+    """An active set of the preview QP: bounds and rows held at each side (bool masks)."""
+
+    lower: BoolArray
+    upper: BoolArray
+    rows_lower: BoolArray
+    rows_upper: BoolArray
 
 
 def _advanced(mask: BoolArray, nv: int, plan: int) -> BoolArray:

@@ -56,6 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import linalg
 from scipy.linalg import lapack
 
 from otmm_qp.exceptions import ParameterError
@@ -183,6 +184,11 @@ class PreviewProblem:
             self.problem.l[self._acceleration_rows] = -change
         if size > plan:
             self._epigraphs(rows, h, dt)
+        # The rows as groups of one block of nv rows per knot, in knot order (position and
+        # acceleration rows: knots 2..K; each epigraph side: knots 1..K), for advance_rows.
+        groups = [self._position_rows, self._acceleration_rows]
+        groups += [slice(a, a + plan) for a in range(rows, rows + epigraph_rows, plan)]
+        self._row_groups = [group for group in groups if group.stop > group.start]
 
     def _epigraphs(self, row: int, h: FloatArray, dt: float) -> None:
         r"""The epigraph rows from ``row`` on, their variables' cost and bounds (constant).
@@ -306,8 +312,8 @@ class PreviewProblem:
         rows = self._position_rows
         if rows.stop:
             room = np.clip(position_room, -BIG, BIG)
-            problem.l[rows] = np.tile(room[0], count - 1)
-            problem.u[rows] = np.tile(room[1], count - 1)
+            problem.l[rows].reshape(count - 1, nv)[:] = room[0]  # a view: every knot's rows
+            problem.u[rows].reshape(count - 1, nv)[:] = room[1]
         return problem
 
     def unconstrained(self) -> FloatArray | None:
@@ -367,6 +373,127 @@ class PreviewProblem:
             ):
                 return None
         return np.asarray(x, dtype=float)
+
+    def with_active_set(
+        self, lower: BoolArray, upper: BoolArray, rows_lower: BoolArray, rows_upper: BoolArray
+    ) -> FloatArray | None:
+        r"""The QP's optimum if the active constraints are exactly the given bounds and rows.
+
+        The generalisation of :meth:`with_active_bounds` to active rows (the warm active set:
+        no solver call when the last optimum's active set, or the same advanced by one
+        segment, is still optimal). With the variables in ``lower`` (``upper``) fixed at
+        ``lb`` (``ub``) and the rows ``W`` in ``rows_lower`` (``rows_upper``) held at ``l``
+        (``u``), the free variables ``F`` solve the equality-constrained QP
+
+        .. math::
+            x_F = x_u - P_{FF}^{-1}A^\top\lambda,\quad
+            (A P_{FF}^{-1} A^\top)\,\lambda = A x_u - b,\quad
+            x_u = -P_{FF}^{-1}(q_F + P_{FB}x_B)
+
+        with :math:`A = C_{WF}`, :math:`b = c_W - C_{WB}x_B` (``c_W`` the held sides); two
+        LAPACK Cholesky factorisations (``P_FF``, then the ``|W| × |W|`` Schur complement).
+        The point is the convex QP's optimum exactly when the KKT conditions hold: every bound
+        and row met (the held rows within 1e-9 relative), :math:`\lambda \ge 0` on rows held
+        at ``u``, :math:`\le 0` at ``l``, and :math:`g = Px + q + C_W^\top\lambda` pushing each
+        fixed variable against its bound (tolerances 1e-9 relative). None otherwise, or when a
+        factorisation fails (e.g. dependent active rows).
+
+        Args:
+            lower: Variables held at ``lb``, shape ``(n,)`` (bool).
+            upper: Variables held at ``ub``, shape ``(n,)`` (bool), disjoint from ``lower``.
+            rows_lower: Rows held at ``l``, shape ``(m,)`` (bool).
+            rows_upper: Rows held at ``u``, shape ``(m,)`` (bool), disjoint from
+                ``rows_lower``.
+        """
+        held = rows_lower | rows_upper
+        if not held.any():
+            return self.with_active_bounds(lower, upper)
+        problem = self.problem
+        P, q, lb, ub, C = problem.P, problem.q, problem.lb, problem.ub, problem.C
+        fixed = lower | upper
+        free = ~fixed
+        if not free.any():
+            return None
+        x = np.where(lower, lb, np.where(upper, ub, 0.0))
+        rows = C[held]
+        A = rows[:, free]
+        b = np.where(rows_lower, problem.l, problem.u)[held]
+        if fixed.any():
+            block = P[np.ix_(free, free)]
+            rhs = q[free] + P[np.ix_(free, fixed)].dot(x[fixed])
+            b = b - rows[:, fixed].dot(x[fixed])
+        else:
+            block, rhs = P, q
+        # Rows that depend on others (a degenerate optimum: e.g. a peak row whose variable
+        # sits at its bound) are dropped: a rank-revealing QR of A^T keeps a basis of them.
+        _, triangle, pivots = linalg.qr(A.T, mode="economic", pivoting=True)
+        diagonal = np.abs(np.diagonal(triangle))
+        basis = pivots[: int(np.count_nonzero(diagonal > 1e-10 * max(1.0, diagonal[0])))]
+        A, b, rows, at_lower = A[basis], b[basis], rows[basis], rows_lower[held][basis]
+        if not basis.size:
+            return self.with_active_bounds(lower, upper)
+        factor, info = lapack.dpotrf(block, lower=False, clean=False, overwrite_a=False)
+        if info != 0:
+            return None
+        unconstrained, info = lapack.dpotrs(factor, -rhs, lower=False)
+        if info != 0:
+            return None
+        directions, info = lapack.dpotrs(factor, np.ascontiguousarray(A.T), lower=False)
+        if info != 0:
+            return None
+        schur, info = lapack.dpotrf(A.dot(directions), lower=False, clean=False)
+        if info != 0:
+            return None
+        multipliers, info = lapack.dpotrs(schur, A.dot(unconstrained) - b, lower=False)
+        if info != 0:
+            return None
+        x[free] = unconstrained - directions.dot(multipliers)
+        if not (np.all(x >= lb) and np.all(x <= ub)):
+            return None  # also for NaN
+        values = C.dot(x)
+        slack = 1e-9 * (1.0 + np.abs(values))
+        if not (np.all(values >= problem.l - slack) and np.all(values <= problem.u + slack)):
+            return None
+        signs = np.where(at_lower, -multipliers, multipliers)
+        if np.any(signs < -1e-9 * (1.0 + np.abs(multipliers))):
+            return None
+        if fixed.any():
+            gradient = P.dot(x) + q + rows.T.dot(multipliers)
+            tolerance = 1e-9 * (1.0 + np.abs(gradient))
+            if np.any(gradient[lower] < -tolerance[lower]) or np.any(
+                gradient[upper] > tolerance[upper]
+            ):
+                return None
+        return np.asarray(x, dtype=float)
+
+    def active_rows(self, x: FloatArray, tol: float = 1e-9) -> tuple[BoolArray, BoolArray]:
+        """The rows ``C x`` holds at a side (within ``tol·(1 + |side|)``): ``(at l, at u)``."""
+        problem = self.problem
+        values = problem.C.dot(x)
+        lower = values <= problem.l + tol * (1.0 + np.abs(problem.l))
+        upper = ~lower & (values >= problem.u - tol * (1.0 + np.abs(problem.u)))
+        return lower, upper
+
+    def violated_rows(self, x: FloatArray, tol: float = 1e-9) -> BoolArray:
+        """The rows ``x`` breaks by more than ``tol·(1 + |side|)``, shape ``(m,)`` (bool)."""
+        problem = self.problem
+        values = problem.C.dot(x)
+        return (values < problem.l - tol * (1.0 + np.abs(problem.l))) | (
+            values > problem.u + tol * (1.0 + np.abs(problem.u))
+        )
+
+    @property
+    def position_rows(self) -> slice:
+        """The rows of the future knots' position box (empty without a position limit)."""
+        return self._position_rows
+
+    def advance_rows(self, mask: BoolArray) -> BoolArray:
+        """A per-row mask advanced by one segment, as the plan is (the last knot's kept)."""
+        moved = mask.copy()
+        nv = self.nv
+        for group in self._row_groups:
+            moved[group.start : group.stop - nv] = mask[group.start + nv : group.stop]
+        return moved
 
     def active_bounds(self, x: FloatArray, tol: float = 1e-9) -> tuple[BoolArray, BoolArray]:
         """The bounds ``x`` lies on (within ``tol·(1 + |bound|)``): ``(at lb, at ub)``."""

@@ -46,10 +46,20 @@ OUR_SOLVERS: dict[str, tuple[str, str]] = {
 #: The solver of the pipeline timed with the fast path off (its persistent session).
 PERSISTENT_DAQP = "daqp"
 EVERY_STEP = "QP every step"
-#: The preview pipelines (Panda only): label, backend, parameters. Each replays the recorded
-#: states at their recorded times along the recording run's trajectory; ``hold`` keeps a
-#: run-time infeasible QP from stopping the bench (it is timed like any step).
+#: The preview pipelines (Panda only): label, backend, parameters — every preview row a study
+#: config or the README names (``preview``/``preview-smooth``: the defaults, H = 1 s;
+#: ``preview_causal``; ``preview-minmax`` and the deployable ``preview-minmax-k8``) and the
+#: horizon and two-rate variants. Each replays the recorded states at their recorded times
+#: along the recording run's trajectory; ``hold`` keeps a run-time infeasible QP from stopping
+#: the bench (it is timed like any step).
+MINMAX = {"horizon": 1.0, "peak": 0.003, "peak_jump": 0.03, "infeasible_policy": "hold"}
+#: The deployable preview row (issue 37): ``preview-minmax``'s weights, 8 knots, working set.
+DEPLOYABLE = "preview-minmax-k8 (deployable)"
 PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    (DEPLOYABLE, "preview", {**MINMAX, "knots": 8, "working_set": True, "fast_path": False}),
+    ("preview-minmax (16 knots)", "preview", MINMAX),
+    ("preview (H = 1 s)", "preview", {"horizon": 1.0, "infeasible_policy": "hold"}),
+    ("preview_causal (H = 1 s)", "preview_causal", {"horizon": 1.0, "infeasible_policy": "hold"}),
     ("preview (H = 0.5 s)", "preview", {"horizon": 0.5, "infeasible_policy": "hold"}),
     ("preview (H = 2 s)", "preview", {"horizon": 2.0, "infeasible_policy": "hold"}),
     (

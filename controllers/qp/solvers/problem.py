@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 import qpsolvers
+from numpy.typing import NDArray
 
 from otmm_qp.exceptions import DimensionError
 from otmm_qp.robots.robot import FloatArray
@@ -69,6 +70,14 @@ class QpProblem(NamedTuple):
         """``(n, m, equality flags as bytes)``: what a solver session allocates for."""
         m = self.C.shape[0]
         return self.q.shape[0], m, (self.l == self.u).tobytes() if m else b""
+
+    def with_rows(self, rows: NDArray[np.bool_]) -> QpProblem:
+        """The same QP keeping only the general rows in ``rows`` (shape ``(m,)``, bool).
+
+        ``P``, ``q`` and the box are shared (not copied); the kept rows are copies. Its
+        optimum is a relaxation's: the whole QP's optimum when it meets the dropped rows.
+        """
+        return QpProblem(self.P, self.q, self.lb, self.ub, self.C[rows], self.l[rows], self.u[rows])
 
     def copy(self) -> QpProblem:
         """A deep copy (a snapshot of buffers that the next step overwrites)."""

@@ -143,6 +143,30 @@ def test_bench_instructions_runs_tiny() -> None:
     assert refused.returncode == 2 and "--steps must be >= 10" in refused.stderr
 
 
+def test_bench_reach_runs_one_arm() -> None:
+    script = str(ROOT / "benchmarks" / "bench_reach.py")
+    done = subprocess.run(
+        [sys.executable, script, "ur5"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    row = done.stdout.strip().splitlines()[-1].split("|")
+    outer, found, offsets = float(row[2]), float(row[3]), float(row[8])
+    assert row[1].strip() == "ur5" and found <= outer <= offsets  # a bracket under the old bound
+
+
+def test_bench_decide_runs_tiny(tmp_path: Path) -> None:
+    script = str(ROOT / "benchmarks" / "bench_decide.py")
+    out = tmp_path / "decide.json"
+    done = subprocess.run(
+        [sys.executable, script, "--studies", "20", "--json", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert out.is_file() and "|" in done.stdout
+
+
 def test_every_benchmark_script_and_example_is_tested() -> None:
     # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py;
     # bench_reference: test_studies_oracle.py.
@@ -158,6 +182,8 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_instructions.py",
         "bench_preview_cpu.py",  # test_qp_bench.py
         "profile_preview.py",  # test_qp_bench.py
+        "bench_reach.py",
+        "bench_decide.py",
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

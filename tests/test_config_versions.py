@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -16,11 +17,17 @@ import pytest
 import yaml
 
 from otmm_qp.cli import main
+from otmm_qp.config.current_schema import CURRENT_SCHEMA
 from otmm_qp.config.load import load_config, parse_config
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.migration import versions
 from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION
-from otmm_qp.migration.versions import check_schema, migrate, read_schema
 from otmm_qp.studies.spec import load_study, parse_study
+
+check_schema = partial(versions.check_schema, current=CURRENT_SCHEMA)
+migrate = partial(versions.migrate, current=CURRENT_SCHEMA)
+read_schema = partial(versions.read_schema, current=CURRENT_SCHEMA)
+
 
 DATA = Path(__file__).parent / "data"
 SNAPSHOT = DATA / "configs_5638e52"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
+from functools import partial
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -23,11 +24,17 @@ from hypothesis import strategies as st
 
 from otmm_qp import registry
 from otmm_qp.cli import main
+from otmm_qp.config.current_schema import CURRENT_SCHEMA
 from otmm_qp.exceptions import FIRST_LINE_LIMIT, ConfigError
+from otmm_qp.migration import versions
 from otmm_qp.migration.changes import CURRENT_VERSION
-from otmm_qp.migration.versions import check_schema, migrate, read_schema
 from tests.test_config_versions import GOLDEN, RELEASE_0_1, STEPS, _run, _shortened
 from tests.test_plugins import patch_entry_points
+
+check_schema = partial(versions.check_schema, current=CURRENT_SCHEMA)
+migrate = partial(versions.migrate, current=CURRENT_SCHEMA)
+read_schema = partial(versions.read_schema, current=CURRENT_SCHEMA)
+
 
 OLD = Path(__file__).parent / "data" / "old_schema"
 VENDOR = {

@@ -60,7 +60,7 @@ class TwoRatePreviewBackend(PreviewBackend):
 
     name = "preview_two_rate"
     parameter_constraints: ClassVar[Constraints] = {
-        **PreviewBackend.parameter_constraints,
+        **{k: v for k, v in PreviewBackend.parameter_constraints.items() if k != "working_set"},
         "every": Interval(Integral, 1, None, closed="left"),
         "tracker_regularization": Interval(Real, 0, None, closed="neither"),
         "sliced": Boolean(),

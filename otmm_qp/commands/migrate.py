@@ -41,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Migrate, report, check and write; bad input raises OtmmError (exit 2 in the CLI)."""
+    from otmm_qp.config.current_schema import CURRENT_SCHEMA
     from otmm_qp.config.emit import dump_config, write_config
     from otmm_qp.config.load import parse
     from otmm_qp.config.schema import SuiteConfig
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(source, "no such file")
     if args.out is not None:
         _check_out(args.out)
-    migration = migrate(load_yaml(args.file), source, args.from_version)
+    migration = migrate(load_yaml(args.file), source, args.from_version, current=CURRENT_SCHEMA)
     if "generators" in migration.data:
         from otmm_qp.studies.spec import parse_study
 

@@ -13,6 +13,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
+from otmm_qp.config.current_schema import CURRENT_SCHEMA
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.config.yaml_loader import load_yaml
 from otmm_qp.exceptions import ConfigError, shown
@@ -49,7 +50,8 @@ def parse(model: type[Model], data: Any, source: str) -> Model:
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
-    check_schema(data, source, first_version=1 if issubclass(model, SuiteConfig) else 2)
+    oldest = 1 if issubclass(model, SuiteConfig) else 2
+    check_schema(data, source, first_version=oldest, current=CURRENT_SCHEMA)
     data = {key: value for key, value in data.items() if key != VERSION_KEY}
     try:
         return model.model_validate(data)

@@ -53,6 +53,7 @@ class Fr3VelocityLimit(Limit):
 
     name: ClassVar[str] = "fr3_velocity"
     priority: ClassVar[int] = 0
+    parameter_constraints: ClassVar[Constraints] = {}  # libfranka's constants: no parameter
 
     def bind(self, robot: Robot, dt: float) -> None:
         """Read the constants into ``(7,)`` arrays."""

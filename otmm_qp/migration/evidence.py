@@ -9,73 +9,41 @@ may have existed under either schema.
 
 What schema 1 had is the frozen table of :mod:`otmm_qp.migration.versions`; what the current
 schema has is read from the installed code (the config models' fields and the parameters of
-the plugins otmm-qp ships), imported when first asked, so the package stays importable by the
-registry without a cycle. When schema 3 comes, schema 2's keys are frozen as schema 1's are.
+the plugins otmm-qp ships) through a :class:`CurrentSchema` the caller passes
+(:data:`otmm_qp.config.current_schema.CURRENT_SCHEMA`), so this package imports neither the
+config models nor the registry (both sit above it). When schema 3 comes, schema 2's keys are
+frozen as schema 1's are.
 """
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
-from functools import cache
-from typing import Any
+from typing import Any, Protocol
 
-#: The packages whose plugins are otmm-qp's own (the rest are third-party).
-SHIPPED_PACKAGES = ("otmm_qp", "otmm_qp_controllers")
-#: Record levels of a run file → the config model holding their keys today.
-_RECORD_MODELS = {
-    "file": "SuiteConfig",
-    "experiments": "ExperimentConfig",
-    "controllers": "ControllerConfig",
-}
+__all__ = ["CurrentSchema", "block_evidence", "record_evidence"]
 
 
-@cache
-def record_keys(level: str) -> frozenset[str]:
-    """The keys a record of ``level`` (``file``, ``experiments``, ``controllers``) takes today."""
-    from otmm_qp.config import schema
+class CurrentSchema(Protocol):
+    """What the current schema has: record keys by level, the parameters of shipped plugins."""
 
-    model = getattr(schema, _RECORD_MODELS[level])
-    keys = set(model.model_fields)
-    keys |= {f.alias for f in model.model_fields.values() if f.alias}
-    return frozenset(keys)
+    def record_keys(self, level: str) -> frozenset[str]:
+        """The keys a record of ``level`` (``file``, ``experiments``, ``controllers``) takes."""
+        ...
 
-
-@cache
-def shipped_parameters(group: str, kind: str) -> frozenset[str] | None:
-    """The parameters otmm-qp's plugin ``kind`` of registry group ``group`` takes today.
-
-    Args:
-        group: The registry group, last part (``backends``).
-        kind: The plugin type.
-
-    Returns:
-        The parameter names, or None when otmm-qp does not ship ``kind`` (a third-party,
-        unknown or broken plugin: no evidence either way; it is not imported).
-    """
-    from otmm_qp import registry
-    from otmm_qp.exceptions import OtmmError
-
-    try:
-        spec = registry.specs(f"otmm_qp.{group}").get(kind)
-        if spec is None or spec.value.split(".")[0].split(":")[0] not in SHIPPED_PACKAGES:
-            return None
-        factory = registry.load(spec.group, kind)
-        signature = inspect.signature(factory)
-    except (OtmmError, TypeError, ValueError):
-        return None
-    return frozenset(
-        p.name
-        for p in signature.parameters.values()
-        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and p.name != "self"
-    )
+    def shipped_parameters(self, group: str, kind: str) -> frozenset[str] | None:
+        """The parameters of otmm-qp's plugin ``kind`` of ``group``; None: not shipped."""
+        ...
 
 
 def record_evidence(
-    level: str, record: Mapping[str, Any], path: str, schema_1: frozenset[str]
+    current: CurrentSchema,
+    level: str,
+    record: Mapping[str, Any],
+    path: str,
+    schema_1: frozenset[str],
 ) -> dict[int, list[str]]:
     """The keys of one record (file, experiment, controller) that exist in only one schema."""
-    now = record_keys(level)
+    now = current.record_keys(level)
     found: dict[int, list[str]] = {1: [], 2: []}
     for key in record:
         where = f"{path}.{key}" if path else str(key)
@@ -87,11 +55,16 @@ def record_evidence(
 
 
 def block_evidence(
-    group: str, block: Mapping[str, Any], path: str, schema_1: Mapping[str, set[str]]
+    current: CurrentSchema,
+    group: str,
+    block: Mapping[str, Any],
+    path: str,
+    schema_1: Mapping[str, set[str]],
 ) -> dict[int, list[str]]:
     """The keys (or the type) of one plugin block that exist in only one schema.
 
     Args:
+        current: What the current schema has.
         group: The registry group, last part.
         block: ``{type: NAME, **params}``.
         path: Where the block is, for the evidence text.
@@ -99,7 +72,7 @@ def block_evidence(
     """
     kind = str(block.get("type"))
     before = schema_1.get(kind)
-    now = shipped_parameters(group, kind)
+    now = current.shipped_parameters(group, kind)
     found: dict[int, list[str]] = {1: [], 2: []}
     if before is None and now is not None:
         found[2].append(f"{path}.type: {kind}")

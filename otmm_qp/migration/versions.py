@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 
 from otmm_qp.exceptions import ConfigError, shown
 from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION, RELEASES, Block, SchemaChange
+from otmm_qp.migration.evidence import CurrentSchema, block_evidence, record_evidence
 
 __all__ = [
     "CURRENT_VERSION",
@@ -246,37 +247,36 @@ class Reading(NamedTuple):
 _SCHEMA_1 = {level: frozenset(keys) for level, keys in _SCHEMA_1_KEYS.items()}
 
 
-def schema_evidence(data: Mapping[str, Any]) -> dict[int, list[str]]:
+def schema_evidence(data: Mapping[str, Any], current: CurrentSchema) -> dict[int, list[str]]:
     """The keys of a run file that exist in only one schema: ``{1: [...], 2: [...]}``.
 
     Record keys and the keys of every plugin block otmm-qp ships
-    (:mod:`otmm_qp.migration.evidence`); a plugin type it does not ship says nothing.
+    (:mod:`otmm_qp.migration.evidence`, ``current`` saying what the current schema has); a
+    plugin type it does not ship says nothing.
     """
-    from otmm_qp.migration import evidence
-
     found: dict[int, list[str]] = {1: [], 2: []}
 
     def add(more: dict[int, list[str]]) -> None:
         for version, paths in more.items():
             found[version] += paths
 
-    add(evidence.record_evidence("file", data, "", _SCHEMA_1["file"]))
+    add(record_evidence(current, "file", data, "", _SCHEMA_1["file"]))
     for i, experiment in enumerate(data.get("experiments") or []):
         if not isinstance(experiment, Mapping):
             continue
         where = f"experiments.{i}"
-        add(evidence.record_evidence("experiments", experiment, where, _SCHEMA_1["experiments"]))
+        add(record_evidence(current, "experiments", experiment, where, _SCHEMA_1["experiments"]))
         for j, controller in enumerate(experiment.get("controllers") or []):
             if isinstance(controller, Mapping):
                 at = f"{where}.controllers.{j}"
                 add(
-                    evidence.record_evidence(
-                        "controllers", controller, at, _SCHEMA_1["controllers"]
+                    record_evidence(
+                        current, "controllers", controller, at, _SCHEMA_1["controllers"]
                     )
                 )
     for block in plugin_blocks(data):
         plugins = _SCHEMA_1_PLUGINS.get(block.group, {})
-        add(evidence.block_evidence(block.group, block.block, block.path, plugins))
+        add(block_evidence(current, block.group, block.block, block.path, plugins))
     return found
 
 
@@ -286,7 +286,12 @@ def _meaning_changed(data: Any, version: int) -> list[tuple[SchemaChange, Found]
 
 
 def read_schema(
-    data: Mapping[str, Any], source: str, first_version: int = 1, from_version: int | None = None
+    data: Mapping[str, Any],
+    source: str,
+    first_version: int = 1,
+    from_version: int | None = None,
+    *,
+    current: CurrentSchema,
 ) -> Reading:
     """The schema to read a file in: its ``version``, else ``from_version``, else inferred.
 
@@ -312,7 +317,7 @@ def read_schema(
         return Reading(from_version, "--from", True)
     if first_version >= CURRENT_VERSION or "generators" in data:
         return Reading(CURRENT_VERSION, "a study file (studies came in schema 2)", True)
-    found = schema_evidence(data)
+    found = schema_evidence(data, current)
     old, new = found[1], found[2]
     if old and new:
         if not _meaning_changed(data, first_version):
@@ -335,7 +340,7 @@ def read_schema(
     )
 
 
-def check_schema(data: Any, source: str, first_version: int = 1) -> None:
+def check_schema(data: Any, source: str, first_version: int = 1, *, current: CurrentSchema) -> None:
     """Refuse a file with a key that is gone or whose meaning changed since its version.
 
     The file is read as :func:`read_schema` reads it, as ``otmm-qp migrate`` does: the keys
@@ -348,6 +353,8 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
         source: The file name, for the message.
         first_version: The oldest schema a file of this kind can be in when it states none
             (run files 1, study files 2).
+        current: What the current schema has
+            (:data:`otmm_qp.config.current_schema.CURRENT_SCHEMA`).
 
     Raises:
         ConfigError: A first line naming the file and the command that fixes it, then one
@@ -365,7 +372,7 @@ def check_schema(data: Any, source: str, first_version: int = 1) -> None:
         )
     if not _pending(data, first_version if stated is None else stated):
         return  # nothing changed for any schema the file can be in
-    reading = read_schema(data, source, first_version)
+    reading = read_schema(data, source, first_version, current=current)
     pending = _pending(data, reading.version)
     kept = [] if stated is not None else _meaning_changed(data, first_version)
     kept = [item for item in kept if item not in pending]
@@ -455,13 +462,17 @@ def _walk(data: Any, version: int, path: str, log: list[str]) -> Any:
     return out
 
 
-def migrate(data: Any, source: str, from_version: int | None = None) -> Migration:
+def migrate(
+    data: Any, source: str, from_version: int | None = None, *, current: CurrentSchema
+) -> Migration:
     """Rewrite a parsed run or study file into the current schema, value by value.
 
     Args:
         data: The parsed YAML.
         source: The file name, for messages.
         from_version: The schema to read it in when it states none (None: inferred).
+        current: What the current schema has
+            (:data:`otmm_qp.config.current_schema.CURRENT_SCHEMA`).
 
     Raises:
         ConfigError: Not a mapping, an invalid ``version``, or ``from_version`` contradicting
@@ -469,7 +480,7 @@ def migrate(data: Any, source: str, from_version: int | None = None) -> Migratio
     """
     if not isinstance(data, dict):
         raise ConfigError(source, f"top level must be a mapping, got {type(data).__name__}")
-    version, reason, _ = read_schema(data, source, from_version=from_version)
+    version, reason, _ = read_schema(data, source, from_version=from_version, current=current)
     log: list[str] = []
     body = _walk({k: v for k, v in data.items() if k != VERSION_KEY}, version, "", log)
     return Migration(versioned(body), version, reason, log)

@@ -13,7 +13,7 @@ PROBE = textwrap.dedent(
     """
     import os, signal, sys, threading, time
     import numpy as np
-    from otmm_qp.runner import interrupt
+    from otmm_qp import interrupt
     from otmm_qp_controllers.qp.solvers.osqp_session import OsqpSession
     from otmm_qp_controllers.qp.solvers.problem import QpProblem
 
@@ -55,7 +55,7 @@ REFERENCE = textwrap.dedent(
     sqp.OSQP_SETTINGS.update(eps_abs=1e-12, eps_rel=1e-12, max_iter=200000)
     from otmm_qp.reference import ReferenceSettings, solve_reference
     from otmm_qp.robots.pinocchio_arm import PinocchioArm
-    from otmm_qp.runner import interrupt
+    from otmm_qp import interrupt
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
     robot = PinocchioArm(name="panda", task="position")
@@ -95,7 +95,7 @@ def test_sigint_during_an_osqp_solve_raises_keyboard_interrupt() -> None:
 
 def test_sigint_held_gives_a_swallowed_signal_back() -> None:
     """A library that caught SIGINT itself (``swallowed``): KeyboardInterrupt at the end."""
-    from otmm_qp.runner.interrupt import sigint_held
+    from otmm_qp.interrupt import sigint_held
 
     # The signal given back goes to the process's SIGINT handler: make it Python's default here,
     # whatever the test runner installed (pytest-xdist's workers ignore SIGINT).

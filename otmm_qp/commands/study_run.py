@@ -99,10 +99,6 @@ def run(args: argparse.Namespace) -> int:
         with writing_report(out):
             html, markdown = write_study_report(out, args.highlight)
         print(f"  report: {html}\n          {markdown}")
-    from otmm_qp.runner import interrupt
-
-    if interrupt.requested():  # a stop that library code swallowed: the study still stopped
-        outcome.interrupted = True
     if outcome.interrupted:
         print(
             "otmm-qp: interrupted; every finished episode is stored (rerun to resume)",

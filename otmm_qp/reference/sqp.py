@@ -26,10 +26,10 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.reference.problem import BIG, TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner.interrupt import sigint_held
 
 #: Floor of the Hessian blocks' eigenvalues (relative to 1 + the largest one).
 EIGEN_FLOOR = 1e-9

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution, conflicting_bounds

@@ -78,7 +78,7 @@ class _Watcher:
                 continue  # someone else's real-time signal: not ours to act on
             global _requested
             _requested = True
-            _thread.interrupt_main(signal.Signals(info.si_signo))  # the main thread's Python handler runs it
+            _thread.interrupt_main(signal.Signals(info.si_signo))  # run by its Python handler
 
     @classmethod
     def start(cls) -> _Watcher | None:

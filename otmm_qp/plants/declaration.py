@@ -64,20 +64,18 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
         ValueError: Two rate limits of different lengths (neither one value nor the same
             number of joints).
     """
-    delay, variance, quantum, frequency = 0, 0.0, 0.0, math.inf
+    delay, noise, quantum, frequency = 0, 0.0, 0.0, math.inf
     lags: list[float] = []
     acceleration: tuple[float, ...] = ()
     for part in parts:
         delay += part.delay
         lags.extend(part.lags)
-        variance += part.noise**2
+        noise = math.hypot(noise, part.noise)  # √(Σσ²) without squaring: no overflow
         quantum += part.quantum
         frequency = min(frequency, part.servo_frequency)
         if part.acceleration:
             acceleration = _stricter(acceleration, part.acceleration)
-    return PlantDeclaration(
-        delay, tuple(lags), math.sqrt(variance), quantum, frequency, acceleration
-    )
+    return PlantDeclaration(delay, tuple(lags), noise, quantum, frequency, acceleration)
 
 
 def _stricter(first: tuple[float, ...], second: tuple[float, ...]) -> tuple[float, ...]:

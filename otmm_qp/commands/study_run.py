@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         f"stored, of {outcome.total}; {outcome.seconds:.1f} s, {rate:.1f} episodes/s, "
         f"{steps:.0f} steps/s -> {out}/"
     )
-    if not args.no_report:
+    if not (args.no_report or outcome.interrupted):  # a stop stops; the rerun writes it
         from otmm_qp.studies.report import write_study_report
         from otmm_qp.studies.storage import writing_report
 

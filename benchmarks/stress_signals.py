@@ -140,6 +140,9 @@ def main() -> int:
         problems += [f"after resume: {p}" for p in resumed_problems]
         if resume.returncode != 0 or sorted(after) != sorted(set(after)) or len(after) != total:
             problems.append(f"resume: exit {resume.returncode}, {len(after)} rows of {total}")
+        if problems:
+            (work / f"run{run}.stderr").write_text(err)
+            print("    " + "\n    ".join(lines[-12:]), flush=True)
         tally[outcome] += 1
         tally["failed runs"] += bool(problems)
         name = signal.Signals(signum).name

@@ -41,6 +41,7 @@ _PR_SET_PDEATHSIG = 1
 
 _requested = False
 _depth = 0
+_watching = False  # a watcher thread receives the stop signals (see handle_stop_signals)
 
 
 def _request(signum: int, frame: FrameType | None) -> None:
@@ -119,7 +120,7 @@ def handle_stop_signals(then_ignore: bool = False) -> Iterator[None]:
     Raises:
         KeyboardInterrupt: A stop signal arrived (also one arriving while the block closes).
     """
-    global _requested, _depth
+    global _requested, _depth, _watching
     if _depth or threading.current_thread() is not threading.main_thread():
         _depth += 1
         try:
@@ -130,6 +131,7 @@ def handle_stop_signals(then_ignore: bool = False) -> Iterator[None]:
     _requested = False
     previous = {s: signal.signal(s, _request) for s in STOP_SIGNALS}
     watcher = _Watcher.start()
+    _watching = watcher is not None
     _depth = 1
     closing: list[int] = []
     try:
@@ -138,6 +140,7 @@ def handle_stop_signals(then_ignore: bool = False) -> Iterator[None]:
         # A signal handed on while closing is recorded, not raised half-way through the close.
         for s in STOP_SIGNALS:
             signal.signal(s, lambda signum, frame: closing.append(signum))
+        _watching = False
         if watcher is not None:
             watcher.stop()
         for signum, handler in previous.items():
@@ -161,8 +164,9 @@ def stop_signals_unblocked() -> Iterator[None]:
         KeyboardInterrupt: A stop signal arrived during the block.
     """
     with deferred_stop_signals():
+        unblocked = (*STOP_SIGNALS, _TOKEN) if _TOKEN is not None else STOP_SIGNALS
         previous = (
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, unblocked)
             if hasattr(signal, "pthread_sigmask")
             else None
         )
@@ -232,7 +236,7 @@ def _give_back_sigint() -> None:
 
 
 @contextlib.contextmanager
-def deferred_stop_signals() -> Iterator[None]:
+def deferred_stop_signals(spawning: bool = False) -> Iterator[None]:
     """Hold SIGINT/SIGTERM back while the block runs; act on them when it ends.
 
     For start-up code that must not be interrupted half-way (forking a process pool, starting a
@@ -242,6 +246,14 @@ def deferred_stop_signals() -> Iterator[None]:
     (:func:`requested`); when the block ends normally, the previous handlers are restored and
     a recorded request raises KeyboardInterrupt at that safe point. Outside the main thread
     the block runs unchanged.
+
+    Args:
+        spawning: The block starts processes (``exec``: Dask's workers) that must ignore
+            Ctrl-C from their first instruction. Under :func:`handle_stop_signals` SIGINT is
+            then *ignored* in the block, which a new program inherits (a handler is not: Ctrl-C
+            in the terminal reached a worker still importing, a KeyboardInterrupt traceback per
+            worker); the driver still gets it, since a signal its every thread blocks is never
+            discarded (Linux) and the watcher takes it.
 
     Raises:
         KeyboardInterrupt: A stop signal arrived during the block.
@@ -254,8 +266,12 @@ def deferred_stop_signals() -> Iterator[None]:
         _requested = True
         arrived.append(signum)
 
+    ignore = spawning and _watching
     try:
-        previous = {s: signal.signal(s, record) for s in STOP_SIGNALS}
+        previous = {
+            s: signal.signal(s, signal.SIG_IGN if ignore and s == signal.SIGINT else record)
+            for s in STOP_SIGNALS
+        }
     except ValueError:  # not the main thread
         yield
         return
@@ -264,7 +280,7 @@ def deferred_stop_signals() -> Iterator[None]:
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    if arrived:
+    if arrived or (ignore and _requested):  # the watcher records an ignored SIGINT
         raise KeyboardInterrupt
 
 

@@ -188,7 +188,8 @@ def _local_cluster(workers: int | None) -> Iterator[Any]:
     SIGTERM/SIGINT while the cluster starts or closes is acted on once it is fully up or
     fully closed (a KeyboardInterrupt inside ``LocalCluster`` start-up printed an ``atexit``
     AssertionError); the workers ignore SIGINT (:data:`WORKER_PRELOAD`), so Ctrl-C in a
-    terminal is one line from the driver, not a traceback per worker.
+    terminal is one line from the driver, not a traceback per worker; a worker it kills while
+    still starting makes the start an interrupt.
     """
     import dask
     from distributed import Client, LocalCluster
@@ -197,16 +198,24 @@ def _local_cluster(workers: int | None) -> Iterator[Any]:
     client: Any = None
     settings = {**QUIET_WORKERS, "distributed.worker.preload": [WORKER_PRELOAD]}
     try:
-        with interrupt.deferred_stop_signals():
-            with dask.config.set(settings):  # the Nanny hands it to the workers it spawns
-                cluster = LocalCluster(
-                    n_workers=workers or os.cpu_count() or 1,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # never the shared default 8787
-                    silence_logs=50,
-                )
-            client = Client(cluster)
+        with interrupt.deferred_stop_signals(spawning=True):
+            try:
+                with dask.config.set(settings):  # the Nanny hands it to the workers it spawns
+                    cluster = LocalCluster(
+                        n_workers=workers or os.cpu_count() or 1,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=":0",  # never the shared default 8787
+                        silence_logs=50,
+                    )
+                client = Client(cluster)
+            except Exception:
+                # Ctrl-C reaches a worker still starting, before its preload ignores SIGINT:
+                # it dies and the cluster fails to start ("Nanny failed to start") — an
+                # interrupt, not an error (the watcher records the stop as the signal lands).
+                if interrupt.requested():
+                    raise KeyboardInterrupt from None
+                raise
         yield client
     finally:
         with suppress(KeyboardInterrupt), interrupt.deferred_stop_signals():

@@ -131,3 +131,36 @@ def test_workers_leave_stop_signals_to_the_driver() -> None:
     assert done.returncode == 0, done.stderr[-3000:]
     lines = done.stdout.strip().splitlines()
     assert lines == ["worker True False True", "main True True", "after"], done.stdout
+
+
+SPAWNING = textwrap.dedent(
+    """
+    import os, signal, subprocess, sys, time
+    from otmm_qp import interrupt
+
+    probe = "import signal; print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)"
+    started = []
+    try:
+        with interrupt.handle_stop_signals():
+            with interrupt.deferred_stop_signals(spawning=True):
+                started.append(subprocess.run([sys.executable, "-c", probe],
+                                              capture_output=True, text=True).stdout.strip())
+                os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while workers start
+                deadline = time.monotonic() + 30.0
+                while not interrupt.requested() and time.monotonic() < deadline:
+                    time.sleep(0.001)  # until the watcher has taken it (or the deadline fails)
+            print("not interrupted")
+    except KeyboardInterrupt:
+        print("interrupted; child ignores SIGINT:", *started)
+    """
+)
+
+
+def test_processes_started_in_a_spawning_block_ignore_ctrl_c_and_the_driver_stops() -> None:
+    """Before: Ctrl-C while the LocalCluster started reached a worker still importing (a
+    KeyboardInterrupt traceback per worker, then "Nanny failed to start", exit 1)."""
+    done = subprocess.run(
+        [sys.executable, "-c", SPAWNING], capture_output=True, text=True, timeout=120, cwd=ROOT
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip() == "interrupted; child ignores SIGINT: True", done.stdout

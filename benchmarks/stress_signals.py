@@ -4,7 +4,8 @@ Each run starts ``otmm-qp study`` (``--workers 1``; every fifth run ``--workers 
 embedded Dask cluster) on a small planar study with the offline reference and an
 OSQP row (tasks generated, controllers run, references solved, parts and the report written),
 sends SIGINT (to the process group, as Ctrl-C in a terminal) or SIGTERM (to the process, as a
-batch system) at a uniformly random time over a run's length, and checks:
+batch system) at a uniformly random time over ``--span`` × a run's length (measured once at the
+start, an embedded cluster's taken as twice that), and checks:
 
 * the answer: exit 130 and exactly one line (``otmm-qp: interrupted…``), no traceback — or
   exit 0 when the study had already finished (every episode stored);
@@ -13,7 +14,7 @@ batch system) at a uniformly random time over a run's length, and checks:
 
 Usage (one core; ~15 min for 50 runs on a loaded 2-core machine)::
 
-    python benchmarks/stress_signals.py --runs 50 --seed 1 > stress.txt
+    python benchmarks/stress_signals.py --runs 50 --seed 3 --span 0.7 > stress.txt
 """
 
 from __future__ import annotations
@@ -82,6 +83,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument(
+        "--span", type=float, default=1.1, help="signal times: uniform over span × baseline"
+    )
     args = parser.parse_args()
     rng = random.Random(args.seed)
     work = Path(tempfile.mkdtemp(prefix="otmm-stress-"))
@@ -108,7 +112,7 @@ def main() -> int:
         signum = (signal.SIGINT, signal.SIGTERM)[run % 2]
         workers = WORKERS[1] if run % 5 == 4 else WORKERS[0]
         out = work / f"run{run}"
-        delay = rng.uniform(0.0, 1.1 * lengths[workers])
+        delay = rng.uniform(0.0, args.span * lengths[workers])
         process = subprocess.Popen(
             _study(config, out, workers), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             start_new_session=True,

@@ -29,8 +29,9 @@ import contextlib
 import os
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import FrameType
+from typing import TypeVar
 
 #: The stop signals.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -39,6 +40,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _TOKEN: int | None = getattr(signal, "SIGRTMAX", None)
 _PR_SET_PDEATHSIG = 1
 
+_T = TypeVar("_T")
 _requested = False
 _depth = 0
 _watching = False  # a watcher thread receives the stop signals (see handle_stop_signals)
@@ -224,6 +226,23 @@ def sigint_held() -> Iterator[HeldSigint]:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     if held.swallowed:
         _give_back_sigint()
+
+
+def solve_held(solve: Callable[[], _T], swallowed: Callable[[_T], bool]) -> _T:
+    """``solve()`` inside :func:`sigint_held`; solved again if the library caught an ignored SIGINT.
+
+    ``swallowed(result)`` says the library's own handler caught SIGINT (OSQP's status
+    ``OSQP_SIGINT``): the signal is given back (KeyboardInterrupt where it is handled). In a
+    process that ignores SIGINT — a worker, whose threads started before its initialiser ran can
+    still take one while OSQP's handler is installed — the interrupted solve is not a result:
+    it is solved again, so Ctrl-C never changes a worker's numbers.
+    """
+    while True:
+        with sigint_held() as held:
+            result = solve()
+            held.swallowed = swallowed(result)
+        if not held.swallowed:
+            return result
 
 
 def _give_back_sigint() -> None:

@@ -111,3 +111,32 @@ def test_sigint_held_gives_a_swallowed_signal_back() -> None:
         assert ran == [1, 2]
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.parametrize("handled", [True, False], ids=["driver", "worker"])
+def test_a_swallowed_sigint_interrupts_a_driver_and_is_solved_again_in_a_worker(
+    handled: bool,
+) -> None:
+    """A library that caught SIGINT itself: KeyboardInterrupt where SIGINT is handled; where it
+    is ignored (a worker), the interrupted solve is no result and is solved again."""
+    from otmm_qp.interrupt import solve_held
+
+    statuses = iter(["interrupted", "solved"])
+    calls: list[str] = []
+
+    def solve() -> str:
+        calls.append(next(statuses))
+        return calls[-1]
+
+    handler = signal.default_int_handler if handled else signal.SIG_IGN
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        if handled:
+            with pytest.raises(KeyboardInterrupt):
+                solve_held(solve, lambda status: status == "interrupted")
+            assert calls == ["interrupted"]
+        else:
+            assert solve_held(solve, lambda status: status == "interrupted") == "solved"
+            assert calls == ["interrupted", "solved"]
+    finally:
+        signal.signal(signal.SIGINT, previous)

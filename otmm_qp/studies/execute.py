@@ -362,6 +362,7 @@ def _store_results(
         outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
         if progress is not None:
             progress(len(rows), failed)
+        interrupt.check()  # a stop Python dropped (raised in a finaliser) ends the study here
 
 
 def _feed_chunks(

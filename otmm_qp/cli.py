@@ -10,6 +10,7 @@ SIGTERM, from the first moment of :func:`main` on, are one line and exit 130.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -79,7 +80,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             return status
     except KeyboardInterrupt:
         print("otmm-qp: interrupted", file=sys.stderr)
+        _forget_unhandled_interrupt()
         return EXIT_INTERRUPTED
+
+
+def _forget_unhandled_interrupt() -> None:
+    """Clear CPython's "ended by an unhandled KeyboardInterrupt" mark: the interrupt was handled.
+
+    A KeyboardInterrupt that passes through a C extension's ``PyRun_String`` while it imports
+    marks the interpreter (``_PyRuntime.signals.unhandled_keyboard_interrupt``), which then
+    kills itself with SIGINT at exit, after this function's exit 130 and line (4 of 30 early
+    Ctrl-Cs). Running an empty string through ``PyRun_SimpleString`` (public C API) resets it.
+    """
+    import ctypes
+
+    with contextlib.suppress(AttributeError, OSError):
+        ctypes.pythonapi.PyRun_SimpleString(b"")
 
 
 def _dispatch(argv: Sequence[str] | None) -> int:

@@ -165,6 +165,10 @@ def load(group: str, name: str) -> Any:
     entry = next(e for e in metadata.entry_points(group=group) if e.name == name)
     try:
         obj = entry.load()
+    except SystemExit as stop:  # a plugin's import ending the program is its failure too
+        raise PluginValidationError(
+            name, f"cannot be loaded from {entry.value}: its import called sys.exit({stop.code!r})"
+        ) from None
     except Exception as error:  # noqa: BLE001 - report any import failure as the plugin's fault
         raise PluginValidationError(
             name, f"cannot be loaded from {entry.value}: {error}"

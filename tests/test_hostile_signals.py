@@ -25,7 +25,7 @@ ITERATIONS = 80  # the code before the fix failed ~46 % of iterations
 RACE = """
 import multiprocessing, os, random, signal, sys, threading, time, faulthandler
 from otmm_qp.output import figures
-from otmm_qp.runner import interrupt
+from otmm_qp import interrupt
 
 def fake(job):
     time.sleep(0.001)

@@ -13,7 +13,7 @@ PROBE = textwrap.dedent(
     """
     import os, signal, sys, threading, time
     import numpy as np
-    from otmm_qp.runner import interrupt
+    from otmm_qp import interrupt
     from otmm_qp_controllers.qp.solvers.osqp_session import OsqpSession
     from otmm_qp_controllers.qp.solvers.problem import QpProblem
 
@@ -55,7 +55,7 @@ REFERENCE = textwrap.dedent(
     sqp.OSQP_SETTINGS.update(eps_abs=1e-12, eps_rel=1e-12, max_iter=200000)
     from otmm_qp.reference import ReferenceSettings, solve_reference
     from otmm_qp.robots.pinocchio_arm import PinocchioArm
-    from otmm_qp.runner import interrupt
+    from otmm_qp import interrupt
     from otmm_qp.trajectories.line import QuinticLineTrajectory
 
     robot = PinocchioArm(name="panda", task="position")
@@ -95,7 +95,7 @@ def test_sigint_during_an_osqp_solve_raises_keyboard_interrupt() -> None:
 
 def test_sigint_held_gives_a_swallowed_signal_back() -> None:
     """A library that caught SIGINT itself (``swallowed``): KeyboardInterrupt at the end."""
-    from otmm_qp.runner.interrupt import sigint_held
+    from otmm_qp.interrupt import sigint_held
 
     # The signal given back goes to the process's SIGINT handler: make it Python's default here,
     # whatever the test runner installed (pytest-xdist's workers ignore SIGINT).
@@ -109,5 +109,34 @@ def test_sigint_held_gives_a_swallowed_signal_back() -> None:
         with sigint_held():  # nothing arrived: nothing raised
             ran.append(2)
         assert ran == [1, 2]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.parametrize("handled", [True, False], ids=["driver", "worker"])
+def test_a_swallowed_sigint_interrupts_a_driver_and_is_solved_again_in_a_worker(
+    handled: bool,
+) -> None:
+    """A library that caught SIGINT itself: KeyboardInterrupt where SIGINT is handled; where it
+    is ignored (a worker), the interrupted solve is no result and is solved again."""
+    from otmm_qp.interrupt import solve_held
+
+    statuses = iter(["interrupted", "solved"])
+    calls: list[str] = []
+
+    def solve() -> str:
+        calls.append(next(statuses))
+        return calls[-1]
+
+    handler = signal.default_int_handler if handled else signal.SIG_IGN
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        if handled:
+            with pytest.raises(KeyboardInterrupt):
+                solve_held(solve, lambda status: status == "interrupted")
+            assert calls == ["interrupted"]
+        else:
+            assert solve_held(solve, lambda status: status == "interrupted") == "solved"
+            assert calls == ["interrupted", "solved"]
     finally:
         signal.signal(signal.SIGINT, previous)

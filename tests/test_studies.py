@@ -357,3 +357,41 @@ def test_external_scheduler_with_a_worker_killed_midway(tmp_path: Path) -> None:
         for process in processes:
             process.kill()
             process.wait(timeout=10)
+
+
+SWALLOWED_STOP = """
+import os, signal, sys
+import otmm_qp.studies.execute as execute
+from otmm_qp import interrupt
+
+make_chunks = execute.make_chunks
+
+def swallowing(*args, **kwargs):
+    try:  # library code that catches KeyboardInterrupt and goes on
+        os.kill(os.getpid(), signal.SIGTERM)
+        while not interrupt.requested():
+            pass
+        for _ in range(10**6):  # the handler runs here, once the watcher hands the stop on
+            pass
+    except KeyboardInterrupt:
+        print("swallowed", file=sys.stderr)
+    return make_chunks(*args, **kwargs)
+
+execute.make_chunks = swallowing
+from otmm_qp.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_stop_that_study_code_swallows_still_stops_the_study(tmp_path: Path) -> None:
+    """Held-out case: SIGTERM early in a study ended with exit 0 and no line (the private SIGTERM
+    handler raised without recording the request; the KeyboardInterrupt was swallowed)."""
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(TINY))
+    argv = ["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1", "--quiet"]
+    done = subprocess.run(
+        [sys.executable, "-c", SWALLOWED_STOP, *argv], capture_output=True, text=True, timeout=120
+    )
+    lines = [line for line in done.stderr.strip().splitlines() if line != "swallowed"]
+    assert done.returncode == 130, done.stderr[-3000:]
+    assert lines == ["otmm-qp: interrupted; every finished episode is stored (rerun to resume)"]

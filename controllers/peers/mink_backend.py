@@ -8,6 +8,7 @@ import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import PeerModelMismatch
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.robots.peer_models import (
     JointMap,
     PinocchioPeerModel,
@@ -17,7 +18,6 @@ from otmm_qp.robots.peer_models import (
 )
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
-from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 

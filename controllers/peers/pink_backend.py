@@ -9,10 +9,10 @@ import numpy as np
 import pinocchio as pin
 
 from otmm_qp.backends.backend import BackendOutput
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.robots.peer_models import PinocchioPeerModel
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.robots.velocity_task import VelocityTaskData
-from otmm_qp.runner.interrupt import sigint_held
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 

@@ -36,7 +36,7 @@ from ..qp.box_backend import SOLVER, SOLVER_TOL, BoxQpBackend
 from ..qp.formulation import clip_into_box
 from ..qp.solvers import QpProblem, Solution
 from .formulation import BoolArray, PreviewProblem, PreviewWeights
-from .knots import KnotGrid
+from .knots import BYTES_PER_ENTRY, MAX_KNOTS, MAX_QP_BYTES, KnotGrid
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
 
 __all__ = ["KNOTS_PER_SLICE", "CausalPreviewBackend", "PreviewBackend", "PreviewStep", "run_slices"]
@@ -46,6 +46,11 @@ KNOTS_PER_SLICE = 8
 
 InfeasiblePolicy = Literal["raise", "hold", "dls"]
 _WEIGHT = Interval(Real, 0, None, closed="left")
+#: What bounds ``knots`` and ``fine_steps`` (the QP's memory grows as their square).
+_KNOTS = (
+    f"segments; the QP's dense matrices take ~{BYTES_PER_ENTRY}·(K·n)² bytes on n joints, at "
+    f"most {MAX_QP_BYTES // 2**20} MiB"
+)
 
 
 class PreviewStep(NamedTuple):
@@ -115,8 +120,8 @@ class PreviewBackend(BoxQpBackend):
     policies = ("raise", "hold", "dls")
     parameter_constraints: ClassVar[Constraints] = {
         "horizon": Interval(Real, 0, None, closed="neither", unit="s"),
-        "knots": Interval(Integral, 1, None, closed="left"),
-        "fine_steps": Interval(Integral, 1, None, closed="left"),
+        "knots": Interval(Integral, 1, MAX_KNOTS, unit=_KNOTS),
+        "fine_steps": Interval(Integral, 1, MAX_KNOTS, unit=_KNOTS),
         "coarse_step": [Interval(Real, 0, None, closed="neither", unit="s"), None],
         "regularization": Interval(Real, 0, None, closed="neither"),
         "smoothness": _WEIGHT,
@@ -177,6 +182,7 @@ class PreviewBackend(BoxQpBackend):
             ParameterError: The knot layout does not fit ``dt`` (see the class docstring).
         """
         self.grid = KnotGrid.layout(self.horizon, dt, self.fine_steps, self.knots, self.coarse_step)
+        KnotGrid.check_memory(self.grid.count, robot.nv)  # before anything (K·n)² is allocated
         self._shift = self.grid.shift_matrix()
         nv, count = robot.nv, self.grid.count
         boxes = self.limits.boxes

@@ -24,6 +24,14 @@ __all__ = ["KnotGrid"]
 
 #: Relative tolerance of "is a multiple of" tests on times [-].
 _TOL = 1e-9
+#: Most segments ``K`` a horizon may have (``knots`` and ``fine_steps`` are capped by it).
+MAX_KNOTS = 10_000
+#: Memory of the preview QP per entry of its dense ``(K·n)²`` matrices [bytes], about: the
+#: Hessian, the task Hessian and two block copies (measured at bind: 32.5 bytes on the Panda
+#: at K = 16 … 256), plus the solver's copy.
+BYTES_PER_ENTRY = 40
+#: Largest memory the preview QP may need [bytes] (checked before anything is allocated).
+MAX_QP_BYTES = 256 * 2**20
 
 
 def _multiple(value: float, unit: float) -> int | None:
@@ -31,6 +39,15 @@ def _multiple(value: float, unit: float) -> int | None:
     ratio = value / unit
     nearest = round(ratio)
     return int(nearest) if abs(ratio - nearest) <= _TOL * max(1.0, abs(ratio)) else None
+
+
+def _size(count: float) -> str:
+    """``count`` bytes as ``12 MiB`` / ``3.4 GiB`` / ``17.8 PiB``."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if count < 1024 or unit == "PiB":
+            return f"{count:.3g} {unit}"
+        count /= 1024
+    return f"{count:.3g} PiB"  # pragma: no cover - the loop returns at PiB
 
 
 @dataclass(frozen=True)
@@ -106,6 +123,26 @@ class KnotGrid:
                 count = min(knots - fine, max(1, int(math.floor(rest / dt + _TOL))))
             coarse = [rest / count] * count
         return cls(np.array([dt] * fine + coarse, dtype=float))
+
+    @staticmethod
+    def check_memory(count: int, joints: int) -> None:
+        r"""Refuse a QP of ``count`` knots × ``joints`` needing more than :data:`MAX_QP_BYTES`.
+
+        The memory is about :data:`BYTES_PER_ENTRY` · (K·n)² [bytes]; the work of a step grows
+        as (K·n)³.
+
+        Raises:
+            ParameterError: Naming ``knots``, the memory needed and the bound.
+        """
+        variables = count * joints
+        need = BYTES_PER_ENTRY * variables**2
+        if need > MAX_QP_BYTES:
+            most = int(math.isqrt(MAX_QP_BYTES // BYTES_PER_ENTRY) // max(joints, 1))
+            raise ParameterError(
+                "knots",
+                f"{count} segments × {joints} joints need ~{_size(need)} for the QP, above "
+                f"{_size(MAX_QP_BYTES)} (at most {most} segments on {joints} joints)",
+            )
 
     @property
     def count(self) -> int:

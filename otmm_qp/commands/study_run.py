@@ -108,17 +108,13 @@ def run(args: argparse.Namespace) -> int:
         f"stored, of {outcome.total}; {outcome.seconds:.1f} s, {rate:.1f} episodes/s, "
         f"{steps:.0f} steps/s -> {out}/"
     )
-    if not args.no_report:
+    if not (args.no_report or outcome.interrupted):  # a stop stops; the rerun writes it
         from otmm_qp.studies.report import write_study_report
         from otmm_qp.studies.storage import writing_report
 
         with writing_report(out):
             html, markdown = write_study_report(out, args.highlight)
         print(f"  report: {html}\n          {markdown}")
-    from otmm_qp.runner import interrupt
-
-    if interrupt.requested():  # a stop that library code swallowed: the study still stopped
-        outcome.interrupted = True
     if outcome.interrupted:
         print(
             "otmm-qp: interrupted; every finished episode is stored (rerun to resume)",

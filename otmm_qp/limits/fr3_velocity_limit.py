@@ -26,6 +26,7 @@ import numpy as np
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits.limit import Box, Limit
 from otmm_qp.robots.robot import FloatArray, Robot
+from otmm_qp.validation import Constraints
 
 __all__ = ["FR3_VELOCITY", "Fr3VelocityLimit"]
 

@@ -18,11 +18,8 @@ Scale rules, chosen so magnitudes read honestly:
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import multiprocessing
 import os
-import signal
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -38,9 +35,9 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullLocator
 from matplotlib.transforms import blended_transform_factory
 
+from otmm_qp import interrupt
 from otmm_qp.output.paths import atomic_open, safe_name, unique_names
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner import interrupt
 from otmm_qp.runner.prepare import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord
 from otmm_qp.simulation.run_result import RunResult
@@ -698,29 +695,12 @@ def _draw_job(job: _Job) -> None:
         plot_comparison(*args)
 
 
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:
-    """In a worker: get SIGTERM when the parent dies (Linux); ignore SIGINT.
-
-    The parent handles Ctrl-C and shuts the pool down.
-    """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-        if os.getppid() == 1:  # the parent died before prctl took effect
-            os._exit(1)
-
-
 def _draw_on_pool(jobs: list[_Job], workers: int) -> None:
     """Draw ``jobs`` on ``workers`` forked processes; a stop signal never leaves one behind.
 
     The pool is made and every job submitted (which forks all workers: the ``fork`` context
     starts them at the first submit) with stop signals deferred
-    (:func:`~otmm_qp.runner.interrupt.deferred_stop_signals`): SIGTERM/SIGINT arriving while
+    (:func:`~otmm_qp.interrupt.deferred_stop_signals`): SIGTERM/SIGINT arriving while
     the pool starts once raised KeyboardInterrupt inside ``ProcessPoolExecutor`` start-up,
     leaving it half made (a traceback instead of exit 130). A deferred signal is raised as
     soon as the start-up is complete, inside the ``try`` that shuts the pool down; shutting
@@ -731,7 +711,7 @@ def _draw_on_pool(jobs: list[_Job], workers: int) -> None:
     try:
         with interrupt.deferred_stop_signals():
             pool = ProcessPoolExecutor(
-                max_workers=workers, mp_context=context, initializer=_die_with_parent
+                max_workers=workers, mp_context=context, initializer=interrupt.worker_initialiser
             )
             results = pool.map(_draw_job, jobs)
         for _ in results:

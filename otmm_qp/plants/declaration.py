@@ -75,7 +75,7 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
         ValueError: Two rate limits of different lengths (neither one value nor the same
             number of joints).
     """
-    delay, variance, quantum, frequency = 0, 0.0, 0.0, math.inf
+    delay, noise, quantum, frequency = 0, 0.0, 0.0, math.inf
     lags: list[float] = []
     acceleration: tuple[float, ...] = ()
     interface: list[tuple[float, ...]] = [(), ()]
@@ -83,7 +83,7 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
     for part in parts:
         delay += part.delay
         lags.extend(part.lags)
-        variance += part.noise**2
+        noise = math.hypot(noise, part.noise)  # √(Σσ²) without squaring: no overflow
         quantum += part.quantum
         frequency = min(frequency, part.servo_frequency)
         if part.acceleration:
@@ -96,7 +96,7 @@ def combine(parts: Iterable[PlantDeclaration]) -> PlantDeclaration:
     return PlantDeclaration(
         delay,
         tuple(lags),
-        math.sqrt(variance),
+        noise,
         quantum,
         frequency,
         acceleration,

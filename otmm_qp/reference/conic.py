@@ -37,6 +37,7 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.reference.epigraph import (
     ACCEPTED,
     INITIAL_RADIUS,
@@ -237,7 +238,8 @@ class ConicEpigraph:
         kinds.append(clarabel.NonnegativeConeT(count))
         try:
             solver = clarabel.DefaultSolver(hessian, cost, a, b, kinds, _settings())
-            solution = solver.solve()
+            with sigint_held():  # a native solver's own SIGINT handler never takes Ctrl-C
+                solution = solver.solve()
         except (ValueError, RuntimeError, TypeError) as error:
             raise SolverFailure(f"Clarabel: {' '.join(str(error).split())}") from None
         status = str(solution.status)

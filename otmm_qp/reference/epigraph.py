@@ -49,6 +49,7 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.reference.problem import BIG, TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.sqp import SolverFailure
@@ -370,7 +371,8 @@ class EpigraphSQP:
             solver = clarabel.DefaultSolver(
                 hessian, cost, stacked, rhs, [clarabel.NonnegativeConeT(rhs.size)], _settings()
             )
-            solution = solver.solve()
+            with sigint_held():  # a native solver's own SIGINT handler never takes Ctrl-C
+                solution = solver.solve()
         except (ValueError, RuntimeError, TypeError) as error:
             raise SolverFailure(f"Clarabel: {' '.join(str(error).split())}") from None
         status = str(solution.status)

@@ -26,10 +26,10 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from otmm_qp.interrupt import solve_held
 from otmm_qp.reference.problem import BIG, TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner.interrupt import sigint_held
 
 #: Floor of the Hessian blocks' eigenvalues (relative to 1 + the largest one).
 EIGEN_FLOOR = 1e-9
@@ -137,9 +137,11 @@ class SequentialQP:
                 self.solver.setup(P, gradient, self.A, lower, upper, **OSQP_SETTINGS)
             else:
                 self.solver.update(Px=data, q=gradient, l=lower, u=upper)
-            with sigint_held() as held:  # OSQP's own SIGINT handler would swallow Ctrl-C
-                result = self.solver.solve(raise_error=False)
-                held.swallowed = result.info.status_val == osqp.SolverStatus.OSQP_SIGINT
+            solver = self.solver
+            result = solve_held(  # OSQP's own SIGINT handler would swallow Ctrl-C
+                lambda: solver.solve(raise_error=False),
+                lambda r: r.info.status_val == osqp.SolverStatus.OSQP_SIGINT,
+            )
         except (ValueError, RuntimeError) as error:
             raise SolverFailure(f"OSQP: {' '.join(str(error).split())}") from None
         status = str(result.info.status)

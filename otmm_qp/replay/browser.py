@@ -26,6 +26,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
+from otmm_qp.interrupt import stop_signals_unblocked
+
 BROWSER_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 
@@ -161,6 +163,11 @@ def chromium_page(
 
 def _launch(binary: str, profile: str, width: int, height: int) -> subprocess.Popen[str]:
     """Start headless Chromium with its own ``profile`` folder, DevTools on a free port."""
+    with stop_signals_unblocked():  # the browser inherits this thread's signal mask
+        return _popen(binary, profile, width, height)
+
+
+def _popen(binary: str, profile: str, width: int, height: int) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [
             binary,

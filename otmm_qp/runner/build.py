@@ -187,10 +187,7 @@ def check_robot(robot: Robot, q0: FloatArray, field: str) -> None:
     Raises:
         ConfigError: Naming the robot or ``q0`` field.
     """
-    if np.any(np.abs(robot.joint_coordinates(q0)) > MAX_JOINT_COORDINATE):
-        raise ConfigError(
-            f"{field}.q0", f"every joint coordinate must be within ±{MAX_JOINT_COORDINATE:g}"
-        )
+    check_coordinates(robot, q0, field)
     lower, upper = robot.position_limits
     if np.any(np.isnan(lower)) or np.any(np.isnan(upper)):
         raise ConfigError(f"{field}.robot", "position limits must not be NaN")
@@ -206,13 +203,30 @@ def check_robot(robot: Robot, q0: FloatArray, field: str) -> None:
         )
 
 
+def check_coordinates(robot: Robot, q0: FloatArray, field: str) -> None:
+    """Refuse a ``q0`` with a joint coordinate beyond :data:`MAX_JOINT_COORDINATE`.
+
+    Checked before any kinematics: ``q0: [1e308, 1e308]`` overflowed the planar arm's
+    forward kinematics (six RuntimeWarning lines before the error line).
+
+    Raises:
+        ConfigError: Naming the ``q0`` field.
+    """
+    if np.any(np.abs(robot.joint_coordinates(q0)) > MAX_JOINT_COORDINATE):
+        raise ConfigError(
+            f"{field}.q0", f"every joint coordinate must be within ±{MAX_JOINT_COORDINATE:g}"
+        )
+
+
 def start_configuration(robot: Robot, config: ExperimentConfig, field: str) -> FloatArray:
     """``config.q0`` as checked by the robot; a ConfigError on ``q0`` gives its reason."""
     try:
-        return robot.check_start(np.asarray(config.q0, dtype=float))
+        q0 = robot.check_start(np.asarray(config.q0, dtype=float))
     except OtmmError as error:
         message = str(error).removeprefix("q0: ")
         raise ConfigError(f"{field}.q0", message) from error
+    check_coordinates(robot, q0, field)  # before the trajectory reads the pose at q0
+    return q0
 
 
 def build_trajectory(

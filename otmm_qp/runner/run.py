@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol, TextIO
 
+from otmm_qp import interrupt
 from otmm_qp.config.schema import SuiteConfig
 from otmm_qp.metrics.metrics import MetricSettings
-from otmm_qp.runner import interrupt
 from otmm_qp.runner.build import SkippedController
 from otmm_qp.runner.episode import RunRecord, run_episode
 from otmm_qp.runner.prepare import PreparedExperiment, prepare_experiment

@@ -12,16 +12,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable, Generator, Iterator
 from contextlib import closing, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
+from otmm_qp import interrupt
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
 from otmm_qp.studies.oracle import REFERENCE_INDEX, task_reference
 from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
@@ -141,24 +140,6 @@ def payload_of(plan: StudyPlan) -> dict[str, Any]:
     return payload
 
 
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt so both leave a readable dataset."""
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 ProgressHook = Callable[[int, int], None]
 
 
@@ -207,27 +188,34 @@ def _local_cluster(workers: int | None) -> Iterator[Any]:
     SIGTERM/SIGINT while the cluster starts or closes is acted on once it is fully up or
     fully closed (a KeyboardInterrupt inside ``LocalCluster`` start-up printed an ``atexit``
     AssertionError); the workers ignore SIGINT (:data:`WORKER_PRELOAD`), so Ctrl-C in a
-    terminal is one line from the driver, not a traceback per worker.
+    terminal is one line from the driver, not a traceback per worker; a worker it kills while
+    still starting makes the start an interrupt.
     """
     import dask
     from distributed import Client, LocalCluster
-
-    from otmm_qp.runner import interrupt
 
     cluster: Any = None
     client: Any = None
     settings = {**QUIET_WORKERS, "distributed.worker.preload": [WORKER_PRELOAD]}
     try:
-        with interrupt.deferred_stop_signals():
-            with dask.config.set(settings):  # the Nanny hands it to the workers it spawns
-                cluster = LocalCluster(
-                    n_workers=workers or os.cpu_count() or 1,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # never the shared default 8787
-                    silence_logs=50,
-                )
-            client = Client(cluster)
+        with interrupt.deferred_stop_signals(spawning=True):
+            try:
+                with dask.config.set(settings):  # the Nanny hands it to the workers it spawns
+                    cluster = LocalCluster(
+                        n_workers=workers or os.cpu_count() or 1,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=":0",  # never the shared default 8787
+                        silence_logs=50,
+                    )
+                client = Client(cluster)
+            except Exception:
+                # Ctrl-C reaches a worker still starting, before its preload ignores SIGINT:
+                # it dies and the cluster fails to start ("Nanny failed to start") — an
+                # interrupt, not an error (the watcher records the stop as the signal lands).
+                if interrupt.requested():
+                    raise KeyboardInterrupt from None
+                raise
         yield client
     finally:
         with suppress(KeyboardInterrupt), interrupt.deferred_stop_signals():
@@ -328,8 +316,8 @@ def _run_claimed(
     tic = time.perf_counter()
     # From the marker on, a stop signal is an interrupted study (every finished episode
     # stored), also while the chunks are made (reading the stored references takes a while).
-    with _sigterm_as_interrupt():
-        try:
+    try:
+        with interrupt.handle_stop_signals():  # the one stop-signal path (nested in the CLI's)
             _write_study_marker(out, plan, source, ident)
             chunks = make_chunks(plan, done, stored_references(plan, done, out, ident))
             payload = payload_of(plan)
@@ -339,8 +327,9 @@ def _run_claimed(
                 _store_results(results, writer, written, outcome, progress)
 
             _feed_chunks(consume, payload, chunks, where[0], where[1], client)
-        except KeyboardInterrupt:
-            outcome.interrupted = True
+            interrupt.check()  # a stop that library code swallowed: the study still stopped
+    except KeyboardInterrupt:
+        outcome.interrupted = True
     outcome.seconds = time.perf_counter() - tic
     return outcome
 
@@ -384,6 +373,7 @@ def _store_results(
         outcome.steps += sum(int(r.get("steps") or 0) for r in rows)
         if progress is not None:
             progress(len(rows), failed)
+        interrupt.check()  # a stop Python dropped (raised in a finaliser) ends the study here
 
 
 def _feed_chunks(

@@ -107,6 +107,12 @@ class CircleTrajectory(Trajectory):
         start_position = np.asarray(start, dtype=float)
         if start_position.ndim == 2:  # homogeneous pose: use its translation
             start_position = start_position[:dim, 3]
+        if start_position.size < dim:  # a 3-D circle on a planar arm
+            raise ParameterError(
+                "centre",
+                f"has {dim} coordinates but the robot's task position has "
+                f"{start_position.size}: give a centre of {start_position.size} coordinates",
+            )
         start_position = start_position[:dim]
         if start_angle is None:
             offset = start_position - self.centre

@@ -6,8 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from otmm_qp.interrupt import solve_held
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution, conflicting_bounds
@@ -85,11 +85,11 @@ class OsqpSession(QpSession):
         )
 
     def _solve(self) -> Any:
-        """One OSQP solve, Ctrl-C kept for Python (:func:`sigint_held`)."""
-        with sigint_held() as held:  # OSQP's own SIGINT handler would swallow Ctrl-C
-            result = self._solver.solve(raise_error=False)
-            held.swallowed = int(result.info.status_val) == _INTERRUPTED
-        return result
+        """One OSQP solve, Ctrl-C kept for Python (:func:`solve_held`)."""
+        return solve_held(  # OSQP's own SIGINT handler would swallow Ctrl-C
+            lambda: self._solver.solve(raise_error=False),
+            lambda result: int(result.info.status_val) == _INTERRUPTED,
+        )
 
     def _polished(self) -> FloatArray | None:
         """A second solve from where OSQP stopped, at :data:`RETRY_EPS`, polished; or None.

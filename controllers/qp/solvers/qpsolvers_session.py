@@ -7,8 +7,8 @@ from typing import Any
 
 import qpsolvers
 
+from otmm_qp.interrupt import sigint_held
 from otmm_qp.robots.robot import FloatArray
-from otmm_qp.runner.interrupt import sigint_held
 
 from .problem import QpProblem
 from .session import QpSession, Solution

@@ -167,6 +167,20 @@ def test_bench_decide_runs_tiny(tmp_path: Path) -> None:
     assert out.is_file() and "|" in done.stdout
 
 
+def test_stress_signals_runs_once() -> None:
+    """One interrupted study and its resume: the stress script's checks pass (exit 0)."""
+    script = str(ROOT / "benchmarks" / "stress_signals.py")
+    done = subprocess.run(
+        [sys.executable, script, "--runs", "1", "--seed", "1"],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "baseline --workers 1" in done.stdout
+
+
 def test_every_benchmark_script_and_example_is_tested() -> None:
     # bench_qp_session: test_qp_bench.py; bench_study: test_studies_shipped.py;
     # bench_reference: test_studies_oracle.py.
@@ -184,6 +198,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "profile_preview.py",  # test_qp_bench.py
         "bench_reach.py",
         "bench_decide.py",
+        "stress_signals.py",
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}
     assert examples == {"otmm_before_qp.py", "otmm_qp_example_plugin"}  # test_examples.py

@@ -17,6 +17,7 @@ from otmm_qp.cli import main
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.plants.declaration import PlantDeclaration, combine
 from otmm_qp_controllers.preview.knots import BYTES_PER_ENTRY, MAX_QP_BYTES, KnotGrid
+from tests.cli_errors import refusal_text
 from tests.test_plugins import patch_entry_points
 
 CONFIG = """
@@ -38,13 +39,19 @@ experiments:
 def _cli(
     tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str]
 ) -> tuple[int, list[str], list[warnings.WarningMessage]]:
-    """Run ``text`` as a config: (status, stderr lines, warnings raised)."""
+    """Run ``text`` as a config: (status, stderr lines, warnings raised).
+
+    A refusal (status 2) is checked by the refusal rule and given as one line (its text).
+    """
     config = tmp_path / "c.yaml"
     config.write_text(text)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         status = main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"])
-    return status, capsys.readouterr().err.strip().splitlines(), caught
+    err = capsys.readouterr().err
+    if status == 2:
+        return status, [refusal_text(err)], caught
+    return status, err.strip().splitlines(), caught
 
 
 @given(st.lists(st.floats(0.0, 1e300), min_size=1, max_size=4))

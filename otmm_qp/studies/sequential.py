@@ -59,6 +59,7 @@ from numpy.typing import NDArray
 from scipy.special import betainc, betaln
 from scipy.stats import binom
 
+from otmm_qp.studies.sizing import smallest_enough
 from otmm_qp.studies.statistics import ALPHA, holm
 
 __all__ = [
@@ -339,16 +340,4 @@ def tasks_to_decide(
         wins, losses = round(b * total / n), round(c * total / n)
         return bool(log_e_value(wins, wins + losses, prior) >= bound)
 
-    high = n
-    while not enough(high):
-        if high >= most:
-            return None
-        high = min(2 * high, most)
-    low = n
-    while low < high:
-        middle = (low + high) // 2
-        if enough(middle):
-            high = middle
-        else:
-            low = middle + 1
-    return low
+    return smallest_enough(enough, n, n, most)

@@ -22,7 +22,7 @@ tasks that tell them apart and no number of tasks is expected to separate them.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from scipy.stats import binom
 
@@ -88,12 +88,20 @@ def tasks_needed(
     def enough(n: int) -> bool:
         return mcnemar_power(n, share, ahead, level) >= power
 
-    high = max(tasks, 1)
+    return smallest_enough(enough, 1, max(tasks, 1), MAX_TASKS)
+
+
+def smallest_enough(enough: Callable[[int], bool], low: int, start: int, most: int) -> int | None:
+    """The smallest ``n ≥ low`` with ``enough(n)``, for ``enough`` monotone in ``n``.
+
+    Doubling from ``start`` (≥ ``low``) up to ``most`` finds a size that suffices, then
+    bisection on ``[low, that size]``. None when ``most`` does not suffice.
+    """
+    high = start
     while not enough(high):
-        if high >= MAX_TASKS:
+        if high >= most:
             return None
-        high = min(2 * high, MAX_TASKS)
-    low = 1
+        high = min(2 * high, most)
     while low < high:
         middle = (low + high) // 2
         if enough(middle):

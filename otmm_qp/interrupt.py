@@ -138,7 +138,12 @@ def handle_stop_signals(then_ignore: bool = False) -> Iterator[None]:
         KeyboardInterrupt: A stop signal arrived (also one arriving while the block closes).
     """
     global _requested, _depth, _watching
-    if _depth or threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
+        # Another thread's block changes nothing, not even the nesting depth: counted here, it
+        # made a main-thread block entered meanwhile believe it was nested (no handlers).
+        yield
+        return
+    if _depth:
         _depth += 1
         try:
             yield

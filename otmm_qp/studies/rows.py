@@ -263,13 +263,14 @@ def read(out: str | Path) -> StudyFrame:
     if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
     stored = data.table
-    records = stored.to_pylist()  # judging is per row (criteria, joins): the one conversion
-    judged_rows(config, records)
     schema = stored.schema
-    for column in DERIVED_COLUMNS:
-        if schema.get_field_index(column.name) < 0:
-            schema = schema.append(pa.field(column.name, column.type))
-    rows = [{name: record.get(name) for name in schema.names} for record in records]
+    appended = [c for c in DERIVED_COLUMNS if schema.get_field_index(c.name) < 0]
+    for column in appended:
+        schema = schema.append(pa.field(column.name, column.type))
+    rows = stored.to_pylist()  # judging is per row (criteria, joins): the one conversion
+    for row in rows:  # every row holds the schema's columns, in its order (as to_pylist would)
+        row.update(dict.fromkeys(c.name for c in appended))
+    judged_rows(config, rows)
     table = _judged_table(stored, schema, rows)
     return StudyFrame(config, table, tuple(data.ignored), data.older, Rows(rows))
 

@@ -14,6 +14,8 @@ from typing import Any
 
 import pyarrow as pa
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from otmm_qp.studies.columns import (
     DERIVED_COLUMNS,
@@ -261,3 +263,24 @@ def test_one_judged_frame_equals_the_former_round_trip(small_study: Path) -> Non
         for r in frame.rows.rows
         if not is_reference(r)
     )
+
+
+_STORED = sorted(c.name for c in EPISODE_COLUMNS)
+
+
+@given(
+    names=st.lists(st.sampled_from(_STORED), min_size=1, max_size=12, unique=True),
+    cuts=st.lists(st.integers(0, 12), max_size=4),
+    seed=st.integers(0, 2**16),
+)
+def test_composition_is_the_union_of_disjoint_groups(
+    names: list[str], cuts: list[int], seed: int
+) -> None:
+    row = {name: f"{name}-{seed}" for name in names}
+    bounds = sorted({0, len(names), *(min(c, len(names)) for c in cuts)})
+    groups = [dict(list(row.items())[a:b]) for a, b in zip(bounds, bounds[1:], strict=False)]
+    assert episode_row(*groups) == row
+    assert episode_row(*reversed(groups)) == row  # the groups' order does not matter
+    clash = {names[seed % len(names)]: None}  # one column set again by another group
+    with pytest.raises(ValueError, match="set by two column groups"):
+        episode_row(*groups, clash)

@@ -123,7 +123,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     config, controllers = _study(payload)
     built, task_error = _build(config, unit)
     identity = {e.key: identity_columns(config, unit.task, e.key) for e in unit.episodes}
-    finished: list[tuple[Columns, RunResult | None]] = []
+    finished: list[Columns] = []  # controller rows, judged once the reference is known
     candidates: list[Candidate] = []
     limits = _path_limits(config, built)
     for episode in unit.episodes:
@@ -134,7 +134,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
         what = controller_columns(config, spec, episode.loop_mode)
         if built is None:
             failed = outcome_columns("error", task_error)
-            finished.append((episode_row(identity[episode.key], what, failed), None))
+            finished.append(episode_row(identity[episode.key], what, failed))
             continue
         row, run = _controller_episode(config, spec, episode, built)
         row = episode_row(identity[episode.key], what, task_columns(*_task(built)), row)
@@ -146,7 +146,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
                 row = episode_row(row, limits_columns(kept))
             if row["status"] == "ok":
                 candidates.append(Candidate(spec.name, run.q, run.error, float(row["max_error"])))
-        finished.append((row, run))
+        finished.append(row)
     reference = dict(unit.reference or {})
     oracle = next((e for e in unit.episodes if e.is_reference), None)
     if oracle is not None:
@@ -156,7 +156,7 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
             reference = task_reference(result.rows[-1])
     elif not reference and config.reference.enabled and built is not None:
         reference = task_reference(_reference_of(config, built, candidates))
-    for row, _ in finished:
+    for row in finished:
         if row.get("status") == "error":
             result.rows.append(episode_row(row, success_columns(False)))
         else:

@@ -294,7 +294,7 @@ def _plan_sizes(name: str) -> tuple[int, int, int]:
 
     episodes = plan_study(load_study(ROOT / "configs" / "studies" / f"{name}.yaml")).episodes
     tasks = {(e.robot, e.generator, e.task_index) for e in episodes}
-    controllers = {e.controller for e in episodes} - {-1}  # -1: the task's oracle row
+    controllers = {e.controller for e in episodes if not e.is_reference}  # the oracle: none
     return len(episodes), len(tasks), len(controllers)
 
 

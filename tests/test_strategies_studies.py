@@ -22,7 +22,7 @@ def test_strategies_studies_are_valid_and_hold_our_row() -> None:
     ):
         plan = plan_study(load_study(STUDIES / name), name)
         assert len(plan.episodes) == episodes + tasks
-        assert sum(1 for e in plan.episodes if e.controller == -1) == tasks
+        assert sum(1 for e in plan.episodes if e.is_reference) == tasks
         names = [c.name for c in plan.controllers]
         assert "sigma_lm" in names and "OTMM-directional+sigma_lm" in names
         assert "held_target" in {g.type for g in load_study(STUDIES / name).generators}

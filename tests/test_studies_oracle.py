@@ -112,7 +112,7 @@ def test_stored_success_is_judged_with_the_reference_also_when_it_is_stored(
     assert all(r["max_error"] > 0.02 for r in online)
     assert any(r["success"] for r in online)
 
-    oracle_keys = {e.key for e in plan.episodes if e.controller < 0}
+    oracle_keys = {e.key for e in plan.episodes if e.is_reference}
     payload = payload_of(plan)
     ident = study_id(plan.config.model_dump(mode="json"))
     stored_refs = stored_references(plan, oracle_keys, tmp_path, ident)

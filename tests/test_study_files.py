@@ -12,7 +12,6 @@ import yaml
 from otmm_qp.cli import main
 from otmm_qp.config import load
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.studies.oracle import REFERENCE_INDEX
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.spec import check_plan_size, load_study, plan_study
 from tests.cli_errors import refusal_text
@@ -128,7 +127,7 @@ def test_limits_are_overridable_and_the_plan_matches_them(tmp_path: Path) -> Non
     path.write_text(_with(limits={"max_tasks": 2, "max_episodes": 4}))
     plan = plan_study(load_study(path))
     assert len(plan.episodes) == 4
-    assert len([e for e in plan.episodes if e.controller == REFERENCE_INDEX]) == 2
+    assert len([e for e in plan.episodes if e.is_reference]) == 2
     path.write_text(_with(limits={"max_tasks": 2, "max_episodes": 3}))
     with pytest.raises(ConfigError, match=re.escape(
         "2 tasks × (1 controllers × 1 loop modes + 1 reference) = 4 episodes exceeds "

@@ -8,23 +8,35 @@ read a study folder directly. A part records :data:`SCHEMA_VERSION` in its Parqu
 parts written before it (column types inferred per part) are read by
 :func:`otmm_qp.studies.load`, which says so in one line.
 
-A new column is one :class:`Column` line here (and its value where the row is filled); the
-column reference in ``docs/studies.md`` is generated from this list
-(``python -m otmm_qp.studies.columns``, checked by a test).
+A new column is one :class:`Column` line here and its value in the group builder that fills
+it (:func:`identity_columns`, :func:`controller_columns`, :func:`metric_columns`,
+:func:`reference_columns`, ... composed by :func:`episode_row`, the one constructor of a stored
+row, like optuna's ``FrozenTrial``); the column reference in ``docs/studies.md`` is generated
+from this list (``python -m otmm_qp.studies.columns``, checked by a test).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 
 from otmm_qp.metrics.table import METRICS, STUDY_METRICS, Metric
+from otmm_qp.reference.result import REFERENCE_COLUMNS
+from otmm_qp.studies.keys import episode_id
+from otmm_qp.studies.task import OFFLINE, StudyTask, plant_name
+from otmm_qp.studies.task_ids import entry_label, task_id
+
+if TYPE_CHECKING:
+    from otmm_qp.config.schema import ControllerConfig
+    from otmm_qp.simulation.run_result import RunResult
+    from otmm_qp.studies.schema import StudyConfig
 
 #: Version of the episode schema written with every part (Parquet metadata).
 SCHEMA_VERSION = 2
@@ -228,6 +240,215 @@ def episode_table(
     schema = episode_schema(extra_columns(rows, known))
     arrays = [pa.array([row.get(f.name) for row in rows], f.type) for f in schema]
     return pa.Table.from_arrays(arrays, schema=schema)
+
+
+# ---------------------------------------------------------------------------------------------
+# Row builders: every stored episode row is composed of these groups (:func:`episode_row`), and
+# no module builds a row any other way (``tests/studies/test_row_builders.py`` checks the code).
+# ---------------------------------------------------------------------------------------------
+
+#: A group of episode columns: ``column name → value`` (None: null).
+Columns = dict[str, Any]
+#: The reference rows' ``controller`` and ``backend`` names (the data contract with the report).
+REFERENCE_NAME = "oracle"
+#: The ``information`` column of the reference rows (the whole path, solved offline).
+OFFLINE_INFORMATION = "offline"
+_RATIO_NAMES = tuple(m.name for m in _STUDY_RATIOS)
+_METRIC_NAMES = tuple(m.name for m in METRICS)
+_DERIVED_NAMES = frozenset(c.name for c in DERIVED_COLUMNS)
+
+
+def _canonical(value: Any) -> str:
+    """Canonical JSON of a parameter record (sorted keys; anything else as its ``str``)."""
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def episode_row(*groups: Mapping[str, Any]) -> Columns:
+    """One episode row composed of column groups: the one constructor of a stored row.
+
+    Every name must be a declared column (:data:`EPISODE_COLUMNS`) or a ``task.*``
+    descriptor, and no two groups may set the same column (each value has one source).
+
+    Raises:
+        ValueError: An undeclared column name, or a column two groups set.
+    """
+    row: Columns = {}
+    for group in groups:
+        for name, value in group.items():
+            if name in row:
+                raise ValueError(f"episode column {name!r} is set by two column groups")
+            if name not in _BY_NAME and not name.startswith(TASK_PREFIX):
+                raise ValueError(f"{name!r} is not a declared episode column (see columns.py)")
+            row[name] = value
+    return row
+
+
+def identity_columns(config: StudyConfig, task: StudyTask, key: str) -> Columns:
+    """Which study, episode and task a row is: the ``identity`` group."""
+    gen = config.generators[task.generator]
+    return {
+        "study": config.name,
+        "episode_key": key,
+        "task_id": task_id(config, task.robot, task.generator, task.index),
+        "episode_id": episode_id(key),
+        "robot": config.robots[task.robot].name,
+        "generator": gen.type,
+        "generator_entry": entry_label(config, task.generator),
+        "generator_params": _canonical(gen.params),
+        "task_index": task.index,
+        "task_seed": task.seed,
+    }
+
+
+def controller_columns(config: StudyConfig, spec: ControllerConfig, mode: str) -> Columns:
+    """What ran: a study controller in loop ``mode`` (``plant`` only with a plants axis), ``dt``.
+
+    ``information`` is the built backend's, so it is its own group (:func:`information_columns`).
+    """
+    params = {
+        **{f"{f.type}.{k}": v for f in spec.filters for k, v in f.params.items()},
+        **{f"{spec.backend.type}.{k}": v for k, v in spec.backend.params.items()},
+    }
+    columns: Columns = {
+        "controller": spec.name,
+        "filters": "+".join(f.type for f in spec.filters) or "none",
+        "backend": spec.backend.type,
+        "controller_params": _canonical(params),
+        "loop_mode": mode,
+        "dt": config.dt,
+    }
+    if config.plants is not None:
+        columns["plant"] = plant_name(spec)
+    return columns
+
+
+def reference_controller_columns(config: StudyConfig) -> Columns:
+    """The reference as a controller: ``oracle``, offline, its settings as the parameters."""
+    return {
+        "controller": REFERENCE_NAME,
+        "filters": "none",
+        "backend": REFERENCE_NAME,
+        "controller_params": json.dumps(config.reference.model_dump(mode="json"), sort_keys=True),
+        "loop_mode": OFFLINE,
+        "information": OFFLINE_INFORMATION,
+        "dt": config.dt,
+    }
+
+
+def information_columns(information: str) -> Columns:
+    """What the row knew of the task: ``causal``, ``preview H s`` (the backend's) or offline."""
+    return {"information": information}
+
+
+def task_columns(descriptors: Mapping[str, Any], duration: float) -> Columns:
+    """The built task: its generator's ``task.*`` descriptors and the episode duration [s]."""
+    return {**{f"{TASK_PREFIX}{k}": v for k, v in descriptors.items()}, "duration": duration}
+
+
+def metric_columns(
+    metrics: Mapping[str, Any], ratios: Mapping[str, float] | None = None
+) -> Columns:
+    """Every metric of :data:`~otmm_qp.metrics.table.METRICS`, and the study's speed ratios.
+
+    A metric ``metrics`` lacks is null; the ratios (``max_speed_ratio``, ``max_jump_ratio``
+    [-], :func:`~otmm_qp.studies.criteria.speed_ratios`) only when given.
+    """
+    columns: Columns = {name: metrics.get(name) for name in _METRIC_NAMES}
+    if ratios is not None:
+        columns.update({name: ratios[name] for name in _RATIO_NAMES})
+    return columns
+
+
+def reference_columns(solved: Mapping[str, Any], seconds: float) -> Columns:
+    """A solved reference's ``reference.*`` columns (``ReferenceResult.columns()``), timed [s]."""
+    known = {name for name, _, _ in _REFERENCE}
+    unknown = sorted(set(solved) - known)
+    if unknown:
+        raise ValueError(f"not reference columns: {', '.join(unknown)}")
+    return {**solved, "reference.seconds": seconds}
+
+
+def failed_reference_columns() -> Columns:
+    """``reference.*`` of a task whose reference could not be computed at all."""
+    columns: Columns = dict.fromkeys(REFERENCE_COLUMNS, math.nan)
+    columns.update(
+        {
+            "reference.status": "failed",
+            "reference.touches_position_limit": False,
+            "reference.near_singular": False,
+            "reference.achievable": False,
+            "reference.converged": False,
+            "reference.source": "none",
+            "reference.certificate": "none",
+            "reference.iterations": 0,
+        }
+    )
+    return columns
+
+
+def outcome_columns(status: str | None, error_message: str | None) -> Columns:
+    """How the episode ended: ``ok``, ``stopped`` or ``error``, and the one-line reason."""
+    return {"status": status, "error_message": error_message}
+
+
+def limits_columns(kept: bool) -> Columns:
+    """Whether the row's path kept the limits its task's reference keeps."""
+    return {KEPT_REFERENCE_LIMITS: kept}
+
+
+def success_columns(success: bool) -> Columns:
+    """Success as judged when the row is stored (``load`` judges it again, see ``rows``)."""
+    return {"success": success}
+
+
+def series_columns(run: RunResult, key: str, stride: int) -> Columns:
+    """One episode's time series, every ``stride``-th step: a ``timeseries`` part's columns.
+
+    ``episode_key``, ``t`` [s], ``position_error`` [m], ``joint_speed`` (max_j |q̇_j| [rad/s]),
+    ``sigma_min`` [-] and ``p`` [-], each a list of the same length.
+    """
+    picked = slice(None, None, stride)
+    speed = np.max(np.abs(run.qdot), axis=1) if run.steps else np.zeros(0)
+    return {
+        "episode_key": [key] * len(run.t[picked]),
+        "t": run.t[picked].tolist(),
+        "position_error": run.position_error[picked].tolist(),
+        "joint_speed": speed[picked].tolist(),
+        "sigma_min": run.sigma_min[picked].tolist(),
+        "p": run.p[picked].tolist(),
+    }
+
+
+def task_reference(oracle_row: Mapping[str, Any]) -> Columns:
+    """The ``reference.*`` columns a task's other rows are judged with, from its oracle row.
+
+    Its stored ``reference.*`` columns, with ``reference.max_error`` falling back to the
+    row's ``max_error`` and ``reference.final_error`` its ``final_error`` [m]. One
+    definition for the episode's stored ``success`` and the reader's judged one.
+    """
+    reference = {k: v for k, v in oracle_row.items() if k.startswith("reference.")}
+    reference.setdefault("reference.max_error", oracle_row.get("max_error"))
+    reference["reference.final_error"] = oracle_row.get("final_error")
+    return reference
+
+
+def judged_columns(
+    causes: Sequence[str], kept: bool, relative: float | None, key: str | None = None
+) -> Columns:
+    """The columns :func:`otmm_qp.studies.load` judges on read (:data:`DERIVED_COLUMNS`).
+
+    ``failure_causes`` (a tuple; a list once in Arrow), ``success`` (no cause), ``kept_limits``,
+    ``oracle_relative_error`` [m]; ``episode_id`` too when the stored row lacks it (``key``).
+    """
+    columns: Columns = {
+        "failure_causes": tuple(causes),
+        "success": not causes,
+        KEPT_LIMITS: kept,
+        "oracle_relative_error": relative,
+    }
+    if key is not None:
+        columns["episode_id"] = episode_id(key)
+    return columns
 
 
 def markdown_reference() -> str:

@@ -7,37 +7,36 @@ row with ``status = "error"`` and the one-line message.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from otmm_qp.config.schema import ControllerConfig
-from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings
+from otmm_qp.metrics.metrics import MetricSettings
 from otmm_qp.reference import Candidate
 from otmm_qp.reference.limits import PathLimits
 from otmm_qp.simulation.run_result import RunResult
-from otmm_qp.studies.columns import KEPT_REFERENCE_LIMITS
-from otmm_qp.studies.criteria import failure_causes, speed_ratios
-from otmm_qp.studies.keys import episode_id
-from otmm_qp.studies.oracle import (
-    OFFLINE,
-    REFERENCE_INDEX,
-    failed_columns,
-    oracle_columns,
-    oracle_fields,
-    reference_settings,
+from otmm_qp.studies.columns import (
+    Columns,
+    controller_columns,
+    episode_row,
+    failed_reference_columns,
+    identity_columns,
+    information_columns,
+    limits_columns,
+    metric_columns,
+    outcome_columns,
+    reference_controller_columns,
+    series_columns,
+    success_columns,
+    task_columns,
     task_reference,
 )
+from otmm_qp.studies.criteria import failure_causes, speed_ratios
+from otmm_qp.studies.oracle import oracle_columns, reference_settings
 from otmm_qp.studies.schema import StudyConfig, SuccessCriteria
-from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, plant_name, study_episode
-from otmm_qp.studies.task_ids import entry_label, task_id
+from otmm_qp.studies.task import BuildCache, BuiltTask, PlannedEpisode, StudyTask, study_episode
 
-#: The ``information`` column of the reference rows (the row's backend's
-#: :attr:`~otmm_qp.backends.backend.Backend.information` for every other row).
-OFFLINE_INFORMATION = "offline"
 #: Metrics that measure wall-clock time: they differ between runs and executors.
 TIMING_METRICS = ("step_time_median_us", "step_time_p99_us", "reference.seconds")
 
@@ -51,16 +50,22 @@ class WorkUnit:
 
     Attributes:
         task: Which task (robot, generator entry, index, seed).
-        episodes: ``(key, controller index, loop mode)`` of each episode to run.
+        episodes: The planned episodes still to run on it (each of ``task``; its reference
+            one of them when it is not stored yet).
         time_series: Also return sampled time series.
         reference: The task's stored ``reference.*`` columns (``task_reference`` of its
             oracle row) when its reference episode is stored already, as sorted items.
     """
 
     task: StudyTask
-    episodes: tuple[tuple[str, int, str], ...]
+    episodes: tuple[PlannedEpisode, ...]
     time_series: bool = False
     reference: tuple[tuple[str, Any], ...] | None = None
+
+    def __post_init__(self) -> None:
+        other = [e.key for e in self.episodes if e.task != self.task]
+        if other:
+            raise ValueError(f"episodes {', '.join(other)} are not of the unit's task")
 
 
 @dataclass
@@ -95,64 +100,6 @@ def is_success(row: dict[str, Any], criteria: SuccessCriteria) -> bool:
     return not failure_causes(row, criteria)
 
 
-def _base_row(
-    config: StudyConfig,
-    controllers: list[ControllerConfig],
-    unit: WorkUnit,
-    key: str,
-    controller: int,
-    mode: str,
-) -> dict[str, Any]:
-    task = unit.task
-    gen = config.generators[task.generator]
-    row: dict[str, Any] = {
-        "study": config.name,
-        "episode_key": key,
-        "task_id": task_id(config, task.robot, task.generator, task.index),
-        "episode_id": episode_id(key),
-        "robot": config.robots[task.robot].name,
-        "generator": gen.type,
-        "generator_entry": entry_label(config, task.generator),
-        "generator_params": json.dumps(gen.params, sort_keys=True, default=str),
-        "task_index": task.index,
-        "task_seed": task.seed,
-    }
-    if controller == REFERENCE_INDEX:
-        row.update(oracle_fields(config))
-        row["information"] = OFFLINE_INFORMATION  # the whole path, solved offline
-    else:
-        spec = controllers[controller]
-        params = {
-            **{f"{f.type}.{k}": v for f in spec.filters for k, v in f.params.items()},
-            **{f"{spec.backend.type}.{k}": v for k, v in spec.backend.params.items()},
-        }
-        row.update(
-            {
-                "controller": spec.name,
-                "filters": "+".join(f.type for f in spec.filters) or "none",
-                "backend": spec.backend.type,
-                "controller_params": json.dumps(params, sort_keys=True, default=str),
-                "loop_mode": mode,
-                **({"plant": plant_name(spec)} if config.plants is not None else {}),
-            }
-        )
-    row["dt"] = config.dt
-    return row
-
-
-def _series(run: RunResult, key: str, stride: int) -> dict[str, Any]:
-    picked = slice(None, None, stride)
-    speed = np.max(np.abs(run.qdot), axis=1) if run.steps else np.zeros(0)
-    return {
-        "episode_key": [key] * len(run.t[picked]),
-        "t": run.t[picked].tolist(),
-        "position_error": run.position_error[picked].tolist(),
-        "joint_speed": speed[picked].tolist(),
-        "sigma_min": run.sigma_min[picked].tolist(),
-        "p": run.p[picked].tolist(),
-    }
-
-
 def _build(config: StudyConfig, unit: WorkUnit) -> tuple[BuiltTask | None, str | None]:
     """The unit's built task, or the generation error (one line)."""
     try:
@@ -170,58 +117,56 @@ def run_unit(payload: dict[str, Any], unit: WorkUnit, result: ChunkResult) -> No
     Each controller row records whether its path kept the reference's limits
     (``within_reference_limits``, :class:`~otmm_qp.reference.limits.PathLimits`).
     A resumed task whose reference row is stored already is judged with the stored one
-    (``unit.reference``). The reference row comes first in the rows, as before.
+    (``unit.reference``). The reference row comes first in the rows, as before. Every row is
+    composed of the column groups of :mod:`otmm_qp.studies.columns`.
     """
     config, controllers = _study(payload)
     built, task_error = _build(config, unit)
-    rows: list[dict[str, Any]] = []
+    identity = {e.key: identity_columns(config, unit.task, e.key) for e in unit.episodes}
+    finished: list[Columns] = []  # controller rows, judged once the reference is known
     candidates: list[Candidate] = []
-    oracle_key: str | None = None
     limits = _path_limits(config, built)
-    for key, controller, mode in unit.episodes:
-        if controller == REFERENCE_INDEX:
-            oracle_key = key
+    for episode in unit.episodes:
+        if episode.is_reference:
             continue
-        row = _base_row(config, controllers, unit, key, controller, mode)
+        assert episode.controller is not None  # a controller episode (PlannedEpisode checks)
+        spec = controllers[episode.controller]
+        what = controller_columns(config, spec, episode.loop_mode)
         if built is None:
-            row.update(status="error", error_message=task_error, success=False)
-            rows.append(row)
+            failed = outcome_columns("error", task_error)
+            finished.append(episode_row(identity[episode.key], what, failed))
             continue
-        row.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
-        row["duration"] = built.duration
-        run = _controller_episode(config, controllers[controller], controller, row, built)
+        row, run = _controller_episode(config, spec, episode, built)
+        row = episode_row(identity[episode.key], what, task_columns(*_task(built)), row)
         if run is not None:
             if unit.time_series:
-                result.series.append(_series(run, key, config.time_series.stride))
+                result.series.append(series_columns(run, episode.key, config.time_series.stride))
             if limits is not None:
-                row[KEPT_REFERENCE_LIMITS] = row["status"] == "ok" and limits.keeps(
-                    run.q, run.error
-                )
+                kept = row["status"] == "ok" and limits.keeps(run.q, run.error)
+                row = episode_row(row, limits_columns(kept))
             if row["status"] == "ok":
-                candidates.append(
-                    Candidate(str(row["controller"]), run.q, run.error, float(row["max_error"]))
-                )
-        rows.append(row)
+                candidates.append(Candidate(spec.name, run.q, run.error, float(row["max_error"])))
+        finished.append(row)
     reference = dict(unit.reference or {})
-    if oracle_key is not None:
-        oracle = _base_row(config, controllers, unit, oracle_key, REFERENCE_INDEX, OFFLINE)
-        if built is None:
-            oracle.update(status="error", error_message=task_error, success=False)
-            oracle.update(failed_columns(str(task_error)), status="error")
-        else:
-            oracle.update({f"task.{k}": v for k, v in built.task.descriptors.items()})
-            oracle["duration"] = built.duration
-            oracle = _oracle_row(config, oracle, built, candidates)
-            reference = task_reference(oracle)
-        result.rows.append(oracle)
+    oracle = next((e for e in unit.episodes if e.is_reference), None)
+    if oracle is not None:
+        head = episode_row(identity[oracle.key], reference_controller_columns(config))
+        result.rows.append(_oracle_row(config, head, built, task_error, candidates))
+        if built is not None:
+            reference = task_reference(result.rows[-1])
     elif not reference and config.reference.enabled and built is not None:
-        reference = task_reference(
-            _oracle_row(config, {"duration": built.duration}, built, candidates)
-        )
-    for row in rows:
-        if row.get("status") != "error":
-            row["success"] = is_success({**reference, **row}, config.success)
-    result.rows.extend(rows)
+        reference = task_reference(_reference_of(config, built, candidates))
+    for row in finished:
+        if row.get("status") == "error":
+            result.rows.append(episode_row(row, success_columns(False)))
+        else:
+            success = is_success({**reference, **row}, config.success)
+            result.rows.append(episode_row(row, success_columns(success)))
+
+
+def _task(built: BuiltTask) -> tuple[dict[str, Any], float]:
+    """The built task's descriptors and episode duration [s] (:func:`task_columns`)."""
+    return dict(built.task.descriptors), built.duration
 
 
 def _path_limits(config: StudyConfig, built: BuiltTask | None) -> PathLimits | None:
@@ -233,53 +178,70 @@ def _path_limits(config: StudyConfig, built: BuiltTask | None) -> PathLimits | N
 
 
 def _controller_episode(
-    config: StudyConfig,
-    spec: ControllerConfig,
-    index: int,
-    row: dict[str, Any],
-    built: BuiltTask,
-) -> RunResult | None:
-    """Run one controller episode into ``row`` (metrics, status); its run, or None on error."""
+    config: StudyConfig, spec: ControllerConfig, episode: PlannedEpisode, built: BuiltTask
+) -> tuple[Columns, RunResult | None]:
+    """Run one controller episode: its information, metric and outcome columns, and its run.
+
+    On an error (stored in the row; plugins are untrusted) the run is None and the columns
+    are the outcome (``status = "error"``, ``success`` false), after the backend's
+    ``information`` when the controller was built.
+    """
     from otmm_qp.runner.build import build_controller
     from otmm_qp.runner.episode import run_episode
     from otmm_qp.runner.plant_stage import build_stage
 
     settings = MetricSettings(**config.metrics.model_dump())
+    information: Columns = {}
     try:
-        made = build_controller(spec, f"controllers.{index}", settings.blow_up_speed)
-        row["information"] = made.backend.information  # causal, or preview H s
+        made = build_controller(spec, f"controllers.{episode.controller}", settings.blow_up_speed)
+        information = information_columns(made.backend.information)  # causal, or preview H s
         stage = build_stage(spec)
-        episode = study_episode(config, built, str(row["loop_mode"]))
-        record = run_episode(episode, made, settings, stage)
+        record = run_episode(study_episode(config, built, episode.loop_mode), made, settings, stage)
     except (Exception, SystemExit) as error:  # recorded in the row; plugins are untrusted
-        row.update(status="error", error_message=one_line(error), success=False)
-        return None
-    run, metrics = record.result, record.metrics
-    row.update({name: metrics.get(name) for name in METRIC_NAMES})
-    row.update(speed_ratios(run))
-    row["status"] = "ok" if run.error_message is None else "stopped"
-    row["error_message"] = run.error_message
-    return run
+        return episode_row(information, outcome_columns("error", one_line(error))), None
+    run = record.result
+    status = "ok" if run.error_message is None else "stopped"
+    columns = episode_row(
+        information,
+        metric_columns(record.metrics, speed_ratios(run)),
+        outcome_columns(status, run.error_message),
+    )
+    return columns, run
+
+
+def _reference_of(config: StudyConfig, built: BuiltTask, candidates: list[Candidate]) -> Columns:
+    """The task's solved reference: metrics, ``reference.*`` and outcome columns (never raising).
+
+    An unexpected solver error is a ``failed`` reference whose ``status`` is null and whose
+    ``error_message`` says why.
+    """
+    try:
+        return oracle_columns(
+            config, built.robot, built.weight, built.task, built.duration, candidates
+        )
+    except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
+        failed = outcome_columns(None, f"reference: {one_line(error)}")
+        return episode_row(failed_reference_columns(), failed)
 
 
 def _oracle_row(
     config: StudyConfig,
-    row: dict[str, Any],
-    built: BuiltTask,
+    head: Columns,
+    built: BuiltTask | None,
+    task_error: str | None,
     candidates: list[Candidate],
-) -> dict[str, Any]:
-    """The task's reference row (never raising: an unexpected error is a ``failed`` row)."""
-    try:
-        row.update(
-            oracle_columns(
-                config, built.robot, built.weight, built.task, built.duration, candidates
-            )
-        )
-    except Exception as error:  # noqa: BLE001 - a failed reference is a row, never a crash
-        row.update(failed_columns(f"reference: {one_line(error)}"), success=False)
-        return row
-    row["success"] = is_success(row, config.success)
-    return row
+) -> Columns:
+    """The task's reference row after its identity and controller columns ``head``.
+
+    Never raising: a task that could not be generated is an ``error`` row, an unexpected
+    solver error a ``failed`` reference (``status`` null); both have ``success`` false.
+    """
+    if built is None:
+        failed = outcome_columns("error", task_error)
+        return episode_row(head, failed_reference_columns(), failed, success_columns(False))
+    row = episode_row(head, task_columns(*_task(built)), _reference_of(config, built, candidates))
+    success = row["status"] == "ok" and is_success(row, config.success)
+    return episode_row(row, success_columns(success))
 
 
 def run_chunk(payload: dict[str, Any], units: list[WorkUnit]) -> ChunkResult:

@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from otmm_qp import interrupt
+from otmm_qp.studies.columns import task_reference
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
-from otmm_qp.studies.oracle import REFERENCE_INDEX, task_reference
 from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
 from otmm_qp.studies.spec import StudyPlan
 from otmm_qp.studies.storage import (
@@ -34,7 +34,7 @@ from otmm_qp.studies.storage import (
     study_id,
     write_marker,
 )
-from otmm_qp.studies.task import StudyTask
+from otmm_qp.studies.task import PlannedEpisode, StudyTask
 
 #: Seconds allowed to connect to an external scheduler.
 CONNECT_TIMEOUT = 10.0
@@ -78,7 +78,7 @@ class StudyOutcome:
 def make_chunks(
     plan: StudyPlan,
     done: set[str],
-    references: dict[tuple[int, int, int], tuple[tuple[str, Any], ...]] | None = None,
+    references: dict[StudyTask, tuple[tuple[str, Any], ...]] | None = None,
 ) -> list[list[WorkUnit]]:
     """Group the missing episodes by task, then tasks into chunks of ``chunk_size``.
 
@@ -87,20 +87,16 @@ def make_chunks(
     from :func:`stored_references`), so its new rows are judged with the stored reference.
     """
     config = plan.config
-    by_task: dict[tuple[int, int, int], list[tuple[str, int, str]]] = {}
-    seeds: dict[tuple[int, int, int], int] = {}
+    by_task: dict[StudyTask, list[PlannedEpisode]] = {}
     for episode in plan.episodes:
-        if episode.key in done:
-            continue
-        task = (episode.robot, episode.generator, episode.task_index)
-        by_task.setdefault(task, []).append((episode.key, episode.controller, episode.loop_mode))
-        seeds[task] = episode.seed
+        if episode.key not in done:
+            by_task.setdefault(episode.task, []).append(episode)
     references = references or {}
     units = [
         WorkUnit(
-            StudyTask(task[0], task[1], task[2], seeds[task]),
+            task,
             tuple(episodes),
-            time_series=task[2] < config.time_series.tasks,
+            time_series=task.index < config.time_series.tasks,
             reference=references.get(task),
         )
         for task, episodes in by_task.items()
@@ -113,17 +109,13 @@ def make_chunks(
 
 def stored_references(
     plan: StudyPlan, done: set[str], out: Path, ident: str
-) -> dict[tuple[int, int, int], tuple[tuple[str, Any], ...]]:
+) -> dict[StudyTask, tuple[tuple[str, Any], ...]]:
     """``task → reference.* columns`` of the tasks with a stored reference and missing rows.
 
     Their new rows are judged with the stored reference (``--resume``).
     """
-    missing = {(e.robot, e.generator, e.task_index) for e in plan.episodes if e.key not in done}
-    tasks = {
-        e.key: (e.robot, e.generator, e.task_index)
-        for e in plan.episodes
-        if e.controller == REFERENCE_INDEX and e.key in done
-    }
+    missing = {e.task for e in plan.episodes if e.key not in done}
+    tasks = {e.key: e.task for e in plan.episodes if e.is_reference and e.key in done}
     wanted = {key for key, task in tasks.items() if task in missing}
     if not wanted:
         return {}

@@ -3,47 +3,29 @@
 The row is an ordinary episode row (``controller = backend = "oracle"``, ``filters =
 "none"``, ``loop_mode = "offline"``) whose metrics are :func:`compute_metrics` over the
 reference's joint path, plus the task-level ``reference.*`` columns of the study contract
-(other rows join them by ``task_id``).
+(other rows join them by ``task_id``). The row's columns are composed by the group builders of
+:mod:`otmm_qp.studies.columns`; this module only solves.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Sequence
 from typing import Any
 
-from otmm_qp.metrics.metrics import METRIC_NAMES, MetricSettings, compute_metrics
-from otmm_qp.reference import (
-    REFERENCE_COLUMNS,
-    Candidate,
-    ReferenceSettings,
-    as_run,
-    solve_reference,
-)
+from otmm_qp.metrics.metrics import MetricSettings, compute_metrics
+from otmm_qp.reference import Candidate, ReferenceSettings, as_run, solve_reference
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.scenarios.generator import Task
+from otmm_qp.studies.columns import (
+    REFERENCE_NAME,
+    episode_row,
+    metric_columns,
+    outcome_columns,
+    reference_columns,
+)
 from otmm_qp.studies.schema import StudyConfig
 
-#: The controller index of a task's reference episode (no controller of the study has it).
-REFERENCE_INDEX = -1
-#: The reference rows' ``controller`` and ``backend`` names (the data contract with the report).
-REFERENCE_NAME = "oracle"
-#: The loop mode of the reference's episode.
-OFFLINE = "offline"
-
-
-def task_reference(oracle_row: dict[str, Any]) -> dict[str, Any]:
-    """The ``reference.*`` columns a task's other rows are judged with, from its oracle row.
-
-    Its stored ``reference.*`` columns, with ``reference.max_error`` falling back to the
-    row's ``max_error`` and ``reference.final_error`` its ``final_error`` [m]. One
-    definition for the episode's stored ``success`` and the report's recomputed one.
-    """
-    reference = {k: v for k, v in oracle_row.items() if k.startswith("reference.")}
-    reference.setdefault("reference.max_error", oracle_row.get("max_error"))
-    reference["reference.final_error"] = oracle_row.get("final_error")
-    return reference
+__all__ = ["REFERENCE_NAME", "oracle_columns", "reference_settings"]
 
 
 def reference_settings(config: StudyConfig) -> ReferenceSettings:
@@ -61,36 +43,6 @@ def reference_settings(config: StudyConfig) -> ReferenceSettings:
         starts=reference.starts,
         perturbations=reference.perturbations,
     )
-
-
-def oracle_fields(config: StudyConfig) -> dict[str, Any]:
-    """The columns that name the reference as a controller."""
-    return {
-        "controller": REFERENCE_NAME,
-        "filters": "none",
-        "backend": REFERENCE_NAME,
-        "controller_params": json.dumps(config.reference.model_dump(mode="json"), sort_keys=True),
-        "loop_mode": OFFLINE,
-    }
-
-
-def failed_columns(message: str) -> dict[str, Any]:
-    """``reference.*`` of a task whose reference could not be computed at all."""
-    columns: dict[str, Any] = dict.fromkeys(REFERENCE_COLUMNS, math.nan)
-    columns.update(
-        {
-            "reference.status": "failed",
-            "reference.touches_position_limit": False,
-            "reference.near_singular": False,
-            "reference.achievable": False,
-            "reference.converged": False,
-            "reference.source": "none",
-            "reference.certificate": "none",
-            "reference.iterations": 0,
-            "error_message": message,
-        }
-    )
-    return columns
 
 
 def oracle_columns(
@@ -120,9 +72,8 @@ def oracle_columns(
     metrics = compute_metrics(
         as_run(result, problem), MetricSettings(**config.metrics.model_dump())
     )
-    columns: dict[str, Any] = {name: metrics.get(name) for name in METRIC_NAMES}
-    columns.update(result.columns())
-    columns["reference.seconds"] = result.seconds
-    columns["status"] = "ok"
-    columns["error_message"] = result.message
-    return columns
+    return episode_row(
+        metric_columns(metrics),
+        reference_columns(result.columns(), result.seconds),
+        outcome_columns("ok", result.message),
+    )

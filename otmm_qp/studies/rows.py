@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,16 +28,24 @@ from typing import Any
 import pyarrow as pa
 
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.studies.columns import DERIVED_COLUMNS, KEPT_LIMITS, KEPT_REFERENCE_LIMITS, number
+from otmm_qp.studies.columns import (
+    DERIVED_COLUMNS,
+    KEPT_LIMITS,
+    KEPT_REFERENCE_LIMITS,
+    REFERENCE_NAME,
+    judged_columns,
+    number,
+    task_reference,
+)
 from otmm_qp.studies.criteria import failure_causes
-from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.limit_keeping import LIMIT_CAUSES
-from otmm_qp.studies.oracle import REFERENCE_NAME, task_reference
 from otmm_qp.studies.schema import StudyConfig
 from otmm_qp.studies.storage import read_study_folder
 
 #: Oracle-relative error column computed for every controller row [m].
 RELATIVE_ERROR = "oracle_relative_error"
+#: Prefix of the task-level reference columns joined onto every row of a task.
+REFERENCE_PREFIX = "reference."
 
 
 @dataclass(frozen=True)
@@ -48,12 +57,16 @@ class StudyFrame:
         table: One row per episode (see the module docstring).
         ignored: One line per reason something was left out.
         older: Parts of an older schema that were read (types converted to the declared ones).
+        rows: The same judged rows as dicts (``table.to_pylist()`` with ``failure_causes``
+            as tuples), made once by :func:`read` from the dicts it judged; what
+            :func:`load_rows` returns.
     """
 
     config: StudyConfig
     table: pa.Table
     ignored: tuple[str, ...] = ()
     older: int = 0
+    rows: Rows = field(default_factory=lambda: Rows([]), repr=False, compare=False)
 
     def notes(self) -> list[str]:
         """What a reader should be told: parts left out, parts of an older schema."""
@@ -109,11 +122,16 @@ def kept_limits(row: dict[str, Any]) -> bool:
     position-limit criteria) and its path kept the reference's own limits
     (``within_reference_limits`` not false; null in parts stored before the column).
     """
+    return _kept(row, row.get("failure_causes", ()))
+
+
+def _kept(row: dict[str, Any], causes: Sequence[str]) -> bool:
+    """:func:`kept_limits` of ``row`` whose failure causes are ``causes``."""
     if is_reference(row):
         return True
     if row.get("status") != "ok" or not row.get("completed"):
         return False
-    if any(cause in LIMIT_CAUSES for cause in row.get("failure_causes", ())):
+    if any(cause in LIMIT_CAUSES for cause in causes):
         return False
     return row.get(KEPT_REFERENCE_LIMITS) is not False
 
@@ -126,8 +144,11 @@ def relative_error(row: dict[str, Any]) -> float | None:
     a limit may have bought accuracy with it, and a reference within the limits is no
     yardstick for it. NaN without a reference.
     """
-    if not row.get(KEPT_LIMITS):
-        return None
+    return _relative(row) if row.get(KEPT_LIMITS) else None
+
+
+def _relative(row: dict[str, Any]) -> float:
+    """``max_error − reference.max_error`` [m] (NaN when either is missing)."""
     return number(row, "max_error") - number(row, "reference.max_error")
 
 
@@ -135,17 +156,16 @@ def judged_rows(config: StudyConfig, rows: list[dict[str, Any]]) -> None:
     """Join the references and judge every row once, in place.
 
     ``failure_causes``, ``success``, :data:`KEPT_LIMITS` (:func:`kept_limits`) and
-    :data:`RELATIVE_ERROR` (:func:`relative_error`).
+    :data:`RELATIVE_ERROR` (:func:`relative_error`), composed by
+    :func:`~otmm_qp.studies.columns.judged_columns`.
     """
     join_reference(rows)
     for row in rows:
-        if not row.get("episode_id"):
-            row["episode_id"] = episode_id(str(row.get("episode_key", "")))
         causes = () if is_reference(row) else failure_causes(row, config.success)
-        row["failure_causes"] = list(causes)
-        row["success"] = not causes
-        row[KEPT_LIMITS] = kept_limits(row)
-        row[RELATIVE_ERROR] = relative_error(row)
+        key = None if row.get("episode_id") else str(row.get("episode_key", ""))
+        kept = _kept(row, causes)
+        relative = _relative(row) if kept else None
+        row.update(judged_columns(causes, kept, relative, key))
 
 
 @dataclass
@@ -242,14 +262,37 @@ def read(out: str | Path) -> StudyFrame:
     config, data = read_study_folder(out)
     if data.table is None or data.table.num_rows == 0:
         raise OtmmError(f"{out}: the study has no stored episodes yet")
-    rows = data.table.to_pylist()
+    stored = data.table
+    schema = stored.schema
+    appended = [c for c in DERIVED_COLUMNS if schema.get_field_index(c.name) < 0]
+    for column in appended:
+        schema = schema.append(pa.field(column.name, column.type))
+    rows = stored.to_pylist()  # judging is per row (criteria, joins): the one conversion
+    for row in rows:  # every row holds the schema's columns, in its order (as to_pylist would)
+        row.update(dict.fromkeys(c.name for c in appended))
     judged_rows(config, rows)
-    schema = data.table.schema
-    for column in DERIVED_COLUMNS:
-        if schema.get_field_index(column.name) < 0:
-            schema = schema.append(pa.field(column.name, column.type))
-    table = pa.Table.from_pylist(rows, schema=schema)
-    return StudyFrame(config, table, tuple(data.ignored), data.older)
+    table = _judged_table(stored, schema, rows)
+    return StudyFrame(config, table, tuple(data.ignored), data.older, Rows(rows))
+
+
+def _judged_table(stored: pa.Table, schema: pa.Schema, rows: list[dict[str, Any]]) -> pa.Table:
+    """``stored`` with the columns :func:`judged_rows` sets replaced or appended (``schema``).
+
+    Only those columns are converted back (the joined ``reference.*``, ``success``,
+    ``episode_id`` and :data:`~otmm_qp.studies.columns.DERIVED_COLUMNS`); the others stay the
+    stored Arrow arrays. Equal to ``pa.Table.from_pylist(rows, schema=schema)``.
+    """
+    judged = {"success", "episode_id", *(c.name for c in DERIVED_COLUMNS)}
+    table = stored
+    for position, spec in enumerate(schema):
+        if spec.name not in judged and not spec.name.startswith(REFERENCE_PREFIX):
+            continue
+        values = pa.array([row[spec.name] for row in rows], spec.type)
+        if position < table.num_columns:
+            table = table.set_column(position, spec, values)
+        else:
+            table = table.append_column(spec, values)
+    return table.replace_schema_metadata(schema.metadata)
 
 
 def load(out: str | Path) -> pa.Table:
@@ -267,7 +310,7 @@ def load(out: str | Path) -> pa.Table:
 
 
 def load_rows(out: str | Path) -> tuple[StudyConfig, Rows]:
-    """The study config and its rows (:func:`otmm_qp.studies.rows.read`) as dicts.
+    """The study config and its judged rows as dicts (:attr:`StudyFrame.rows` of :func:`read`).
 
     What the reader left out (other studies' parts, symlinks, duplicates...) and parts of an
     older schema are printed on stderr, one line each.
@@ -278,7 +321,4 @@ def load_rows(out: str | Path) -> tuple[StudyConfig, Rows]:
     frame = read(Path(out))
     for line in frame.notes():
         print(f"otmm-qp: report {line}", file=sys.stderr)
-    rows = frame.table.to_pylist()
-    for row in rows:
-        row["failure_causes"] = tuple(row["failure_causes"])
-    return frame.config, Rows(rows)
+    return frame.config, frame.rows

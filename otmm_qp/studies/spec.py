@@ -25,9 +25,9 @@ from otmm_qp.exceptions import ConfigError, OtmmError, PeerUnavailable
 from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
 from otmm_qp.simulation.episode import step_count
 from otmm_qp.studies.columns import descriptor_type
-from otmm_qp.studies.oracle import OFFLINE, REFERENCE_INDEX, REFERENCE_NAME
+from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.schema import GENERATOR_BUDGETS, StudyConfig, StudyController
-from otmm_qp.studies.task import BuildCache, BuiltTask, StudyTask, study_episode
+from otmm_qp.studies.task import BuildCache, BuiltTask, PlannedEpisode, StudyTask, study_episode
 from otmm_qp.studies.task_ids import check_entries, seed_name
 
 
@@ -225,23 +225,6 @@ def controller_record(config: ControllerConfig) -> dict[str, Any]:
     return record
 
 
-@dataclass(frozen=True)
-class Episode:
-    """One episode: indices into the study's robots, generators, controllers and loop modes.
-
-    The task's offline-optimal reference is an episode too, with ``controller = REFERENCE_INDEX``
-    (−1) and ``loop_mode = "offline"``.
-    """
-
-    key: str
-    robot: int
-    generator: int
-    task_index: int
-    seed: int
-    controller: int
-    loop_mode: str
-
-
 @dataclass
 class StudyPlan:
     """A validated study ready to run.
@@ -250,7 +233,8 @@ class StudyPlan:
         config: The study record.
         controllers: Expanded controllers (available ones only).
         skipped: ``(name, reason)`` of controllers whose peer library is missing.
-        episodes: Every episode in a fixed order.
+        episodes: Every episode in a fixed order (each task's reference, when enabled, before
+            its controllers).
         task_columns: Arrow types of the ``task.*`` descriptor columns of the generators'
             first tasks (every part stores them, see :mod:`otmm_qp.studies.columns`).
     """
@@ -258,7 +242,7 @@ class StudyPlan:
     config: StudyConfig
     controllers: list[ControllerConfig]
     skipped: list[tuple[str, str]]
-    episodes: list[Episode]
+    episodes: list[PlannedEpisode]
     task_columns: dict[str, pa.DataType] = dataclasses.field(default_factory=dict)
 
     def payload(self) -> dict[str, Any]:
@@ -473,17 +457,18 @@ def plan_study(config: StudyConfig, source: str = "study") -> StudyPlan:
     if not controllers:
         raise ConfigError(f"{source}: controllers", "no controller is available to run")
     records = [controller_record(c) for c in controllers]
-    episodes: list[Episode] = []
+    episodes: list[PlannedEpisode] = []
     for r, robot in enumerate(config.robots):
         for g, gen in enumerate(config.generators):
             for index in range(gen.count):
                 seed = task_seed(config.seed, robot.name, seed_name(config, g), index)
+                task = StudyTask(r, g, index, seed)
                 if config.reference.enabled:  # once per task, before its controllers
                     key = oracle_key(config, r, g, index, seed)
-                    episodes.append(Episode(key, r, g, index, seed, REFERENCE_INDEX, OFFLINE))
+                    episodes.append(PlannedEpisode.reference(key, task))
                 for c, record in enumerate(records):
                     for mode in config.loop_modes:
                         key = episode_key(config, r, g, index, record, mode)
-                        episodes.append(Episode(key, r, g, index, seed, c, mode))
+                        episodes.append(PlannedEpisode.of_controller(key, task, c, mode))
     task_columns = {name: descriptor_type([value]) for name, value in descriptors.items()}
     return StudyPlan(config, controllers, skipped, episodes, task_columns)

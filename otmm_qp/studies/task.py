@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -153,6 +153,95 @@ class StudyTask:
             generator = _entry_by_params(config, row)
         robot = robots.index(str(row["robot"]))
         return cls(robot, generator, int(row["task_index"]), int(row["task_seed"]))
+
+
+#: What a planned episode runs: one of the study's controllers, or the task's reference.
+EpisodeKind = Literal["controller", "reference"]
+#: :attr:`PlannedEpisode.kind` of an episode that runs one of the study's controllers.
+CONTROLLER: EpisodeKind = "controller"
+#: :attr:`PlannedEpisode.kind` of a task's offline-optimal reference episode.
+REFERENCE: EpisodeKind = "reference"
+#: The loop mode of a reference episode (it sees the whole path, solved offline).
+OFFLINE = "offline"
+
+
+@dataclass(frozen=True)
+class PlannedEpisode:
+    """One episode of a study plan: a task, what runs on it, and the episode's key.
+
+    A task's offline-optimal reference is an episode too: ``kind = REFERENCE``, no controller
+    index and loop mode :data:`OFFLINE`; a controller episode has ``kind = CONTROLLER`` and
+    the index of its controller in ``StudyPlan.controllers``. Checked on construction.
+
+    Attributes:
+        key: The episode key (SHA-256 of everything that sets its numbers, see ``spec``).
+        task: Which task (robot, generator entry, index, seed).
+        kind: :data:`CONTROLLER` or :data:`REFERENCE`.
+        loop_mode: ``open`` or ``clik`` (:data:`OFFLINE` for the reference).
+        controller: Index into the plan's controllers; None for the reference.
+
+    Raises:
+        ValueError: A kind other than the two, a reference with a controller index or a loop
+            mode other than offline, or a controller episode without a valid index.
+    """
+
+    key: str
+    task: StudyTask
+    kind: EpisodeKind
+    loop_mode: str
+    controller: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind == REFERENCE:
+            if self.controller is not None or self.loop_mode != OFFLINE:
+                raise ValueError(
+                    f"a reference episode has no controller index and loop mode {OFFLINE!r}, "
+                    f"got controller={self.controller!r}, loop_mode={self.loop_mode!r}"
+                )
+        elif self.kind == CONTROLLER:
+            if not isinstance(self.controller, int) or self.controller < 0:
+                raise ValueError(
+                    f"a controller episode needs a controller index >= 0, got {self.controller!r}"
+                )
+        else:
+            raise ValueError(f"kind: {self.kind!r}; use {CONTROLLER!r} or {REFERENCE!r}")
+
+    @classmethod
+    def reference(cls, key: str, task: StudyTask) -> PlannedEpisode:
+        """The task's reference episode."""
+        return cls(key, task, REFERENCE, OFFLINE)
+
+    @classmethod
+    def of_controller(
+        cls, key: str, task: StudyTask, controller: int, loop_mode: str
+    ) -> PlannedEpisode:
+        """Controller ``controller``'s episode on ``task`` in ``loop_mode``."""
+        return cls(key, task, CONTROLLER, loop_mode, controller)
+
+    @property
+    def is_reference(self) -> bool:
+        """Whether this is the task's offline reference."""
+        return self.kind == REFERENCE
+
+    @property
+    def robot(self) -> int:
+        """Robot index of the task."""
+        return self.task.robot
+
+    @property
+    def generator(self) -> int:
+        """Generator entry index of the task."""
+        return self.task.generator
+
+    @property
+    def task_index(self) -> int:
+        """Index of the task within its generator entry."""
+        return self.task.index
+
+    @property
+    def seed(self) -> int:
+        """Seed the task is drawn from."""
+        return self.task.seed
 
 
 def study_episode(config: StudyConfig, built: BuiltTask, mode: str) -> Episode:

@@ -1,6 +1,6 @@
 """The study report as a small document model, rendered once to Markdown and once to HTML.
 
-A document is a list of items: Markdown text lines (paragraphs, lists, tables), a
+A document is a list of items: Markdown text lines (paragraphs, lists), a :class:`Table`, a
 :class:`Heading` (a ``box`` heading puts the text up to the next heading in a verdict box)
 and a :class:`Figure`. :func:`to_markdown` writes ``study_report.md``; :func:`to_html`
 renders the same items for ``study_report.html`` (figures embedded by the caller's
@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import jinja2
 
 from otmm_qp.output.escape import escape
-from otmm_qp.output.markdown import heading_html, markdown_to_html
+from otmm_qp.output.markdown import Table, heading_html, markdown_to_html, table_markdown
+
+__all__ = ["Figure", "Heading", "Item", "Table", "to_html", "to_markdown"]
 
 
 @dataclass(frozen=True)
@@ -55,7 +57,7 @@ class Figure:
 
 
 #: One item of a document.
-Item = str | Heading | Figure
+Item = str | Heading | Figure | Table
 
 _PAGE = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_string(
     '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
@@ -65,8 +67,16 @@ _PAGE = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_st
 
 
 def to_markdown(items: Sequence[Item]) -> str:
-    """The Markdown of a document (one line per text item)."""
-    return "\n".join(item if isinstance(item, str) else item.markdown() for item in items)
+    """The Markdown of a document (one line per text item, a table's lines in a block)."""
+    return "\n".join(_markdown(item) for item in items)
+
+
+def _markdown(item: Item) -> str:
+    if isinstance(item, str):
+        return item
+    if isinstance(item, Table):
+        return "\n".join(table_markdown(item))
+    return item.markdown()
 
 
 def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figure], str]) -> str:
@@ -93,6 +103,9 @@ def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figur
     for item in items:
         if isinstance(item, str):
             text.append(item)
+            continue
+        if isinstance(item, Table):  # in the text block, so a boxed section keeps its table
+            text.extend(table_markdown(item))
             continue
         flush()
         if isinstance(item, Heading):

@@ -83,6 +83,19 @@ def _table_line(cells: Sequence[str]) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
+def table_html(table: Table) -> str:
+    """The HTML of ``table``: a ``<th>`` row, then ``<td>`` rows, each cell inline-rendered.
+
+    The same markup :func:`markdown_to_html` gives the table's Markdown, without re-parsing it
+    (a cell holding ``|`` stays one cell).
+    """
+    rows = [("th", table.headers), *(("td", row) for row in table.rows)]
+    cells = (
+        "<tr>" + "".join(f"<{tag}>{_inline(c.strip())}</{tag}>" for c in row) for tag, row in rows
+    )
+    return "<table>" + "".join(cells) + "</table>"
+
+
 def _inline(text: str) -> str:
     """Escape, then render `` `code` ``, ``$math$`` (as code), ``**bold**`` and ``*em*``."""
     parts = re.split(r"(``[^`]+``|`[^`]+`|\$[^$]+\$)", text)

@@ -1,6 +1,7 @@
 """The study report as a small document model, rendered once to Markdown and once to HTML.
 
-A document is a list of items: Markdown text lines (paragraphs, lists), a :class:`Table`, a
+A document is a list of items: Markdown text lines (paragraphs, lists), a :class:`Table`
+(rendered by :mod:`otmm_qp.output.markdown`, never re-parsed from Markdown), a
 :class:`Heading` (a ``box`` heading puts the text up to the next heading in a verdict box)
 and a :class:`Figure`. :func:`to_markdown` writes ``study_report.md``; :func:`to_html`
 renders the same items for ``study_report.html`` (figures embedded by the caller's
@@ -15,7 +16,13 @@ from dataclasses import dataclass
 import jinja2
 
 from otmm_qp.output.escape import escape
-from otmm_qp.output.markdown import Table, heading_html, markdown_to_html, table_markdown
+from otmm_qp.output.markdown import (
+    Table,
+    heading_html,
+    markdown_to_html,
+    table_html,
+    table_markdown,
+)
 
 __all__ = ["Figure", "Heading", "Item", "Table", "to_html", "to_markdown"]
 
@@ -89,23 +96,20 @@ def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figur
         figure: The HTML of a figure (e.g. embedded as base64), or ``""`` to leave it out.
     """
     parts: list[str] = []
-    text: list[str] = []
+    text: list[str | Table] = []  # the run of text lines and tables up to the next heading
     boxed = False
     if items and items[-1] == "":  # the Markdown's final newline, not an empty paragraph
         items = items[:-1]
 
     def flush() -> None:
         if text:
-            body = markdown_to_html("\n".join(text))
+            body = _run_html(text)
             parts.append(f'<div class="verdict">{body}</div>' if boxed else body)
             text.clear()
 
     for item in items:
-        if isinstance(item, str):
+        if isinstance(item, (str, Table)):
             text.append(item)
-            continue
-        if isinstance(item, Table):  # in the text block, so a boxed section keeps its table
-            text.extend(table_markdown(item))
             continue
         flush()
         if isinstance(item, Heading):
@@ -116,3 +120,25 @@ def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figur
             parts.append(figure(item))
     flush()
     return _PAGE.render(title=escape(title), css=css, body="\n".join(parts))
+
+
+def _run_html(run: Sequence[str | Table]) -> str:
+    """The HTML of a run of text lines and tables, up to the next heading or figure.
+
+    Each stretch of lines goes through :func:`markdown_to_html`, each table through
+    :func:`table_html`; the blocks are joined by a newline, as :func:`markdown_to_html` joins
+    its own (so a table reads as it did when it was Markdown lines of the run).
+    """
+    pieces: list[str] = []
+    lines: list[str] = []
+    for entry in [*run, None]:
+        if isinstance(entry, str):
+            lines.append(entry)
+            continue
+        html = markdown_to_html("\n".join(lines))
+        lines.clear()
+        if html:
+            pieces.append(html)
+        if entry is not None:
+            pieces.append(table_html(entry))
+    return "\n".join(pieces)

@@ -626,9 +626,10 @@ def test_the_study_report_labels_rows_by_information_class_when_it_mixes_them(
     """Success tables and the fronts summary name each row's class; one class: no label."""
     import yaml
 
+    from otmm_qp.studies.document import to_markdown
     from otmm_qp.studies.fronts import summary_table
-    from otmm_qp.studies.report import load_rows, success_table
-    from otmm_qp.studies.rows import Rows
+    from otmm_qp.studies.report.tables import success_table
+    from otmm_qp.studies.rows import Rows, load_rows
     from otmm_qp.studies.verdicts import study_fronts
 
     path = tmp_path / "study.yaml"
@@ -649,7 +650,7 @@ def test_the_study_report_labels_rows_by_information_class_when_it_mixes_them(
     assert causal.information_labels() == {} == unlabelled.information_labels()
     for robot in (None, "planar2"):
         assert success_table(causal, robot) == success_table(unlabelled, robot)
-    assert "(causal)" not in "\n".join(success_table(causal, None)[0])
+    assert "(causal)" not in to_markdown([success_table(causal, None)[0]])
     fronts_of = study_fronts(causal)
     assert summary_table(fronts_of, information=causal.information_labels()) == summary_table(
         study_fronts(unlabelled)

@@ -85,7 +85,7 @@ def _check_reference_sentence(out: Path) -> None:
     assert (len(feasible), len(oracle)) == (int(found.group(1)), int(found.group(2)))
     others = {oracle[t]["generator"] for t in set(oracle) - feasible}
     assert others <= {"beyond_reach", "near_singular"}
-    from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.rows import load_rows
 
     config, recomputed = load_rows(out)
     bound = config.success.max_position_error

@@ -15,7 +15,7 @@ import numpy as np
 from otmm_qp.cli import main
 from otmm_qp.studies.group_verdict import kind_fronts, kind_rows, kinds_table
 from otmm_qp.studies.limit_keeping import limit_breaks
-from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.spec import load_study, plan_study
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -18,7 +18,7 @@ from otmm_qp.reference.projection import project_path
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.report import RELATIVE_ERROR, load_rows
+from otmm_qp.studies.rows import RELATIVE_ERROR, load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 from tests.cli_errors import refusal_text

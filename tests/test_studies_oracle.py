@@ -92,7 +92,7 @@ def test_stored_success_is_judged_with_the_reference_also_when_it_is_stored(
     tasks), as the report judges them, also in a unit whose reference row is stored already."""
     from otmm_qp.studies.episodes import run_chunk
     from otmm_qp.studies.execute import make_chunks, payload_of, stored_references
-    from otmm_qp.studies.report import load_rows
+    from otmm_qp.studies.rows import load_rows
     from otmm_qp.studies.storage import study_id
 
     study = dict(

@@ -12,12 +12,14 @@ from scipy import stats
 
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_OBJECTIVES, STUDY_PAIRED, metric
+from otmm_qp.output.markdown import table_markdown
 from otmm_qp.output.pareto import dominates
 from otmm_qp.studies.criteria import RATIO_COLUMNS
 from otmm_qp.studies.fronts import FAMILIES, front_of, group_fronts, summary_table
 from otmm_qp.studies.group_verdict import render
-from otmm_qp.studies.report import Rows, check_highlight
+from otmm_qp.studies.rows import Rows
 from otmm_qp.studies.statistics import exact_signed_rank_p, wilcoxon_p
+from otmm_qp.studies.verdicts import check_highlight
 
 OBJECTIVES = ["max_error", "max_joint_speed", "max_jump"]
 
@@ -61,7 +63,7 @@ def test_front_dominated_rows_and_the_criterion() -> None:
     )
     assert alone.meeting() == ("ours",) and alone.best_on_all == "ours"
     assert alone.row("ours").verdict() == "dominates"  # type: ignore[union-attr]
-    text = "\n".join(summary_table([front], lambda n: n == "ours"))
+    text = "\n".join(table_markdown(summary_table([front], lambda n: n == "ours")))
     assert "**ours** (ours)" in text and "loses on max_joint_speed" in text
 
 

@@ -20,16 +20,13 @@ from otmm_qp.runner.run import run_suite
 from otmm_qp.studies.criteria import failure_causes, speed_ratios
 from otmm_qp.studies.episodes import TIMING_METRICS
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.report import (
-    RELATIVE_ERROR,
-    TaskGroup,
-    group_verdict,
-    load_rows,
-    write_study_report,
-)
+from otmm_qp.studies.report import write_study_report
+from otmm_qp.studies.report.lines import verdict_line
+from otmm_qp.studies.rows import RELATIVE_ERROR, load_rows
 from otmm_qp.studies.schema import SuccessCriteria
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
+from otmm_qp.studies.verdicts import TaskGroup
 
 STUDY = {
     "name": "drill",
@@ -280,20 +277,20 @@ def test_group_verdict_names_the_pick_and_its_paired_evidence() -> None:
     rows = [_synthetic("a", i, True) for i in range(30)]
     rows += [_synthetic("b", i, i < 5) for i in range(30)]
     rows += [_synthetic("c", i, i != 0) for i in range(30)]
-    text = group_verdict(TaskGroup("singular crossings", "test tasks", rows))
+    text = verdict_line(TaskGroup("singular crossings", "test tasks", rows))
     # a does not beat c: it leads, it is no pick (never bold when undecided)
     assert "leader a (success 100 %; not a decision: it does not beat every other" in text
     assert "**a**" not in text
     assert "not separated from it by the paired test: c (97 %)" in text
     assert "the closest b (17 %: a alone succeeds on 25 tasks, b alone on 0" in text
     two = [r for r in rows if r["controller"] != "c"]
-    assert "pick **a** (success 100 %)" in group_verdict(TaskGroup("k", "test tasks", two))
+    assert "pick **a** (success 100 %)" in verdict_line(TaskGroup("k", "test tasks", two))
     for row in two:  # a breaks the arm's limits on most of its tasks: said, never bold
         if row["controller"] == "a" and row["task_index"] < 20:
             row["failure_causes"] = ["speed"]
-    text = group_verdict(TaskGroup("k", "test tasks", two))
+    text = verdict_line(TaskGroup("k", "test tasks", two))
     assert "**a**" not in text and "breaks the arm's limits on 20 of 30 episodes" in text
     tied = [_synthetic(n, i, i % 2 == 0) for n in "xy" for i in range(10)]
-    text = group_verdict(TaskGroup("beyond-reach motion", "test tasks", tied))
+    text = verdict_line(TaskGroup("beyond-reach motion", "test tasks", tied))
     assert "no paired test separates the controllers" in text and "pick" not in text
     assert "needs about" in text or "succeed on the same tasks" in text  # never a bare "none"

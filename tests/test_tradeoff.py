@@ -9,7 +9,7 @@ import pytest
 
 from otmm_qp.cli import main as study_main
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.tradeoff import OUTCOMES, bounded_optimum, main, rebuild_task
 

@@ -28,7 +28,7 @@ from otmm_qp.exceptions import RobotLoadError
 from otmm_qp.registry import check_parameters
 from otmm_qp.robots.urdf_meshes import check_meshes
 from otmm_qp.studies.limit_keeping import limit_breaks
-from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.spec import load_study
 from otmm_qp.studies.storage import StudyDirectoryError, prepare_directory
 from tests.cli_errors import refusal_text

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from otmm_qp.output.markdown import Table, table_markdown
+
 STEP_DEFINITION = (
     "floor: the robot's kinematics + Jacobian + one dgesdd, nothing else; "
     "otmm-qp: KinematicState.compute (kinematics + Jacobian + SVD) + Controller.step; "
@@ -19,26 +21,22 @@ def _scenario_lines(scenario: dict[str, Any]) -> list[str]:
         f"{scenario['description']}; a joint bound was active on "
         f"{scenario['bounded_fraction']:.0%} of the recording run's steps.",
         "",
-        "| pipeline | median µs | p10 µs | p90 µs | p99 µs | × pink (daqp) | × floor |",
-        "|---|---:|---:|---:|---:|---:|---:|",
     ]
-    for row in sorted(scenario["rows"], key=lambda r: r["median_us"]):
-        lines.append(
-            f"| {row['pipeline']} | {row['median_us']:.1f} | {row['p10_us']:.1f} | "
-            f"{row['p90_us']:.1f} | {row['p99_us']:.1f} | {row['ratio_to_pink_daqp']:.2f} | "
-            f"{row.get('ratio_to_floor', float('nan')):.2f} |"
-        )
+    headers = ["pipeline", "median µs", "p10 µs", "p90 µs", "p99 µs", "× pink (daqp)", "× floor"]
+    cells = [
+        [row["pipeline"], *(f"{row[k]:.1f}" for k in ("median_us", "p10_us", "p90_us", "p99_us"))]
+        + [f"{row['ratio_to_pink_daqp']:.2f}", f"{row.get('ratio_to_floor', float('nan')):.2f}"]
+        for row in sorted(scenario["rows"], key=lambda r: r["median_us"])
+    ]
+    lines += table_markdown(Table(headers, cells, "lrrrrrr"))
     if scenario["targets"]:
-        lines += [
-            "",
-            "| target (medians, same run) | µs | limit µs | met |",
-            "|---|---:|---:|---|",
+        targets = [
+            [check["target"], f"{check['value_us']:.1f}", f"{check['limit_us']:.1f}"]
+            + ["yes" if check["met"] else "**no**"]
+            for check in scenario["targets"]
         ]
-        for check in scenario["targets"]:
-            lines.append(
-                f"| {check['target']} | {check['value_us']:.1f} | {check['limit_us']:.1f} | "
-                f"{'yes' if check['met'] else '**no**'} |"
-            )
+        headers = ["target (medians, same run)", "µs", "limit µs", "met"]
+        lines += ["", *table_markdown(Table(headers, targets, "lrrl"))]
     lines += [f"\n_{note}_" for note in scenario["notes"]]
     lines.append("")
     return lines

@@ -27,7 +27,7 @@ def write_any_report(results_dir: Path, highlight: str | None = None) -> tuple[P
     ``highlight`` (study reports only) names the controller placed as *ours* on the fronts.
 
     The dispatch on the folder kind lives here, above both report modules, so the run report
-    (``output/report.py``) and the study report (``studies/report.py``) never import each
+    (``output/report.py``) and the study report (``studies/report/``) never import each
     other.
     """
     results_dir = Path(results_dir)

@@ -91,7 +91,7 @@ METRICS: tuple[Metric, ...] = (
 )
 
 #: Columns a study row adds to :data:`METRICS`, computed in ``otmm_qp/studies/``:
-#: ``oracle_relative_error`` = max_error − reference.max_error (``studies/report.py``),
+#: ``oracle_relative_error`` = max_error − reference.max_error (``studies/rows.py``),
 #: the speed and jump ratios to each joint's own velocity limit (``studies/criteria.py``).
 STUDY_METRICS: tuple[Metric, ...] = (
     Metric("oracle_relative_error", "oracle-relative max error", "m"),

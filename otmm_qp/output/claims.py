@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.output.paths import atomic_write_text
 from otmm_qp.paper import SIGMA_S as DEFAULT_SIGMA_S
 from otmm_qp.runner.run import RunRecord, SuiteResult
@@ -281,15 +282,9 @@ def write_claims(verdicts: list[Verdict], path: Path) -> None:
         "never written by hand.",
         "",
         "Criteria" + doc.replace(":math:", ""),
-        "| claim | loop mode | verdict | evidence |",
-        "|---|---|---|---|",
     ]
-    for v in verdicts:
-        mark = {
-            HOLDS: "✅ holds",
-            FAILS: "❌ does not hold",
-            NOT_EXERCISED: "➖ not exercised",
-        }.get(v.verdict, v.verdict)
-        lines.append(f"| {v.claim} | {v.loop_mode} | {mark} | {v.evidence} |")
+    marks = {HOLDS: "✅ holds", FAILS: "❌ does not hold", NOT_EXERCISED: "➖ not exercised"}
+    cells = [[v.claim, v.loop_mode, marks.get(v.verdict, v.verdict), v.evidence] for v in verdicts]
+    lines += table_markdown(Table(["claim", "loop mode", "verdict", "evidence"], cells))
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, "\n".join(lines) + "\n")

@@ -1,12 +1,16 @@
-"""Minimal Markdown → HTML (headings, tables, lists, paragraphs) for claims and study reports.
+"""Minimal Markdown → HTML for claims and study reports, and the one Markdown table writer.
 
-A leaf of the output layer: the run report and the study report both import it, so neither
-imports the other.
+:func:`markdown_to_html` renders headings, tables, lists and paragraphs; :class:`Table` and
+:func:`table_markdown` are the only writer of Markdown tables (no other module writes a table
+header or row by hand: ``tests/test_report_package.py`` checks it). A leaf of the output layer:
+the run report and the study report both import it, so neither imports the other.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 from otmm_qp.output.escape import escape
 
@@ -29,6 +33,67 @@ code{background:#eef2f7;padding:0 .25rem;border-radius:3px}
 .claims td,.claims th{white-space:normal;text-align:left;overflow-wrap:anywhere}
 .scroll{overflow-x:auto}
 """
+
+
+#: Alignment codes of :attr:`Table.align`: left (the default) and right.
+ALIGNMENTS = {"l": "---|", "r": "---:|"}
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table: a header row, body rows of cells (inline Markdown) and each column's alignment.
+
+    Attributes:
+        headers: The header cells, one per column.
+        rows: The body rows; each has ``len(headers)`` cells.
+        align: One code per column, ``"l"`` (left) or ``"r"`` (right); empty: all left.
+
+    Raises:
+        ValueError: A row or ``align`` does not have one entry per column, or a code is unknown.
+    """
+
+    headers: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    align: str = ""
+
+    def __init__(
+        self, headers: Sequence[str], rows: Sequence[Sequence[str]], align: str = ""
+    ) -> None:
+        width = len(headers)
+        bad = [i for i, row in enumerate(rows) if len(row) != width]
+        if bad:
+            raise ValueError(f"Table row {bad[0]} has {len(rows[bad[0]])} cells, not {width}")
+        if align and (len(align) != width or set(align) - set(ALIGNMENTS)):
+            raise ValueError(f"Table align {align!r}: one of {sorted(ALIGNMENTS)} per column")
+        object.__setattr__(self, "headers", tuple(headers))
+        object.__setattr__(self, "rows", tuple(tuple(row) for row in rows))
+        object.__setattr__(self, "align", align or "l" * width)
+
+
+def table_markdown(table: Table) -> list[str]:
+    """The Markdown lines of ``table``: ``| a | b |``, ``|---|---:|``, then one line per row."""
+    return [
+        _table_line(table.headers),
+        "|" + "".join(ALIGNMENTS[code] for code in table.align),
+        *(_table_line(row) for row in table.rows),
+    ]
+
+
+def _table_line(cells: Sequence[str]) -> str:
+    return "| " + " | ".join(cells) + " |"
+
+
+def table_html(table: Table) -> str:
+    """The HTML of ``table``: a ``<th>`` row, then ``<td>`` rows, each cell inline-rendered.
+
+    The same markup :func:`markdown_to_html` gives the table's Markdown, without re-parsing it
+    (a cell holding ``|`` stays one cell).
+    """
+    rows = [("th", table.headers), *(("td", row) for row in table.rows)]
+    cells = (
+        "<tr>" + "".join(f"<{tag}>{_inline(c.strip())}</{tag}>" for c in row) for tag, row in rows
+    )
+    return "<table>" + "".join(cells) + "</table>"
 
 
 def _inline(text: str) -> str:

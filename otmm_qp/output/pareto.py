@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from otmm_qp.metrics.table import metric
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text
 from otmm_qp.output.results import IDENTITY_COLUMNS, ResultsDir
 from otmm_qp.output.summary import RunOutcome
@@ -112,9 +113,8 @@ def pareto_markdown(entries: Sequence[Entry]) -> str:
         "[rad/s]. A run is on the front when no other run of the scenario is at least as good "
         "on all three and better on one; runs that blew up are excluded.",
         "",
-        "| scenario | best window error | best peak speed | best max jump | Pareto front |",
-        "|---|---|---|---|---|",
     ]
+    cells: list[list[str]] = []
     wins: dict[str, int] = {}
     for scenario, group in _by_scenario(entries).items():
         front = pareto_front(group)
@@ -129,11 +129,16 @@ def pareto_markdown(entries: Sequence[Entry]) -> str:
         for entry in front:
             wins[entry.controller] = wins.get(entry.controller, 0) + 1
         names = ", ".join(e.controller for e in front) or "—"
-        lines.append(f"| {scenario} | {best[0]} | {best[1]} | {best[2]} | {names} |")
-    total = len(_by_scenario(entries))
-    lines += ["", "| strategy | on the front in | of scenarios |", "|---|---:|---:|"]
-    for name, count in sorted(wins.items(), key=lambda item: (-item[1], item[0])):
-        lines.append(f"| {name} | {count} | {total} |")
+        cells.append([scenario, best[0], best[1], best[2], names])
+    headers = ["scenario", "best window error", "best peak speed", "best max jump"]
+    lines += table_markdown(Table([*headers, "Pareto front"], cells))
+    total = str(len(_by_scenario(entries)))
+    ranked = sorted(wins.items(), key=lambda item: (-item[1], item[0]))
+    counts = [[name, str(count), total] for name, count in ranked]
+    lines += [
+        "",
+        *table_markdown(Table(["strategy", "on the front in", "of scenarios"], counts, "lrr")),
+    ]
     return "\n".join(lines) + "\n"
 
 

@@ -41,7 +41,7 @@ from pathlib import Path
 from otmm_qp.exceptions import ConfigError, OutputPathError
 from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
-from otmm_qp.output.markdown import REPORT_CSS, markdown_to_html
+from otmm_qp.output.markdown import REPORT_CSS, Table, markdown_to_html, table_markdown
 from otmm_qp.output.paths import atomic_write_text, ensure_inside
 from otmm_qp.output.png import compact_png
 from otmm_qp.output.replays import find_replays
@@ -271,13 +271,12 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
         best = best_values(group)
         lines += ["", f"### {experiment} — {mode}", ""]
         header = ["controller", *(label for _, label, _ in REPORT_COLUMNS)]
-        lines.append("| " + " | ".join(header) + " |")
-        lines.append("|---|" + "---:|" * len(REPORT_COLUMNS))
+        body: list[list[str]] = []
         for row in group:
             if row.skipped:
                 cells = [row.controller, f"skipped: {row.error_message}"]
                 cells += [""] * (len(REPORT_COLUMNS) - 1)
-                lines.append("| " + " | ".join(cells) + " |")
+                body.append(cells)
                 continue
             cells = [row.controller + _status_note(row)]
             for key, _, spec in REPORT_COLUMNS:
@@ -285,7 +284,8 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
                 if row.eligible and row.values[key] == best[key]:
                     text = f"**{text}**"
                 cells.append(text)
-            lines.append("| " + " | ".join(cells) + " |")
+            body.append(cells)
+        lines += table_markdown(Table(header, body, "l" + "r" * len(REPORT_COLUMNS)))
     lines += ["", "## Ranking across scenarios", ""]
     lines.append(
         "Score = mean rank over scenarios and the metrics "
@@ -293,14 +293,12 @@ def render_markdown(results_dir: Path, rows: Sequence[Row], claims: str | None) 
         + " (1 = best; blown-up or stopped runs rank last). Lower is better. Controllers that "
         "broke the arm's joint speed or position limits rank after those that kept them."
     )
-    lines += [
-        "",
-        "| rank | controller | score | scenarios | arm's limits |",
-        "|---:|---|---:|---:|---|",
+    places = [
+        [str(place), controller, f"{score:.2f}", str(count), limit_note(rows, controller)]
+        for place, (controller, score, count) in enumerate(ranking(rows), start=1)
     ]
-    for place, (controller, score, count) in enumerate(ranking(rows), start=1):
-        note = limit_note(rows, controller)
-        lines.append(f"| {place} | {controller} | {score:.2f} | {count} | {note} |")
+    headers = ["rank", "controller", "score", "scenarios", "arm's limits"]
+    lines += ["", *table_markdown(Table(headers, places, "rlrrl"))]
     lines += ["", "## Figures", ""]
     figures = _figures(results_dir)
     if not figures:

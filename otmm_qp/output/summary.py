@@ -9,6 +9,7 @@ from pathlib import Path
 
 from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
 from otmm_qp.metrics.table import columns
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.output.paths import atomic_open, atomic_write_text
 
 ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
@@ -104,13 +105,13 @@ def write_summary_markdown(rows: Sequence[dict[str, object]], path: Path, title:
     for (experiment, mode), group in groups.items():
         lines += ["", f"## {experiment} — {mode}", ""]
         header = ["controller", *(label for _, label, _ in MARKDOWN_COLUMNS)]
-        lines.append("| " + " | ".join(header) + " |")
-        lines.append("|" + "---|" * len(header))
+        body: list[list[str]] = []
         for row in group:
             cells = [str(row["controller"])]
             cells += [_format(row.get(key, ""), spec) for key, _, spec in MARKDOWN_COLUMNS]
             if row.get("error_message"):
                 cells[0] += f" ({row.get('outcome', RunOutcome.STOPPED)}: {row['error_message']})"
-            lines.append("| " + " | ".join(cells) + " |")
+            body.append(cells)
+        lines += table_markdown(Table(header, body))
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, "\n".join(lines) + "\n")

@@ -28,6 +28,7 @@ import numpy as np
 import pyarrow as pa
 
 from otmm_qp.metrics.table import METRICS, STUDY_METRICS, Metric
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.reference.result import REFERENCE_COLUMNS
 from otmm_qp.studies.keys import episode_id
 from otmm_qp.studies.task import OFFLINE, StudyTask, plant_name
@@ -453,14 +454,18 @@ def judged_columns(
 
 def markdown_reference() -> str:
     """The column reference of ``docs/studies.md`` (Markdown table), from the declarations."""
-    lines = ["| column | type | meaning |", "|---|---|---|"]
-    for column in (*EPISODE_COLUMNS, *DERIVED_COLUMNS):
-        lines.append(f"| `{column.name}` | {column.type} | {column.doc} |")
-    lines.append(
-        "| `task.*` | double, string or bool | the generator's descriptors of the task "
-        "(numbers as double) |"
+    rows = [
+        (f"`{column.name}`", str(column.type), column.doc)
+        for column in (*EPISODE_COLUMNS, *DERIVED_COLUMNS)
+    ]
+    rows.append(
+        (
+            "`task.*`",
+            "double, string or bool",
+            "the generator's descriptors of the task (numbers as double)",
+        )
     )
-    return "\n".join(lines)
+    return "\n".join(table_markdown(Table(("column", "type", "meaning"), rows)))
 
 
 #: Markers around the generated table in ``docs/studies.md``.

@@ -1,6 +1,7 @@
 """The study report as a small document model, rendered once to Markdown and once to HTML.
 
-A document is a list of items: Markdown text lines (paragraphs, lists, tables), a
+A document is a list of items: Markdown text lines (paragraphs, lists), a :class:`Table`
+(rendered by :mod:`otmm_qp.output.markdown`, never re-parsed from Markdown), a
 :class:`Heading` (a ``box`` heading puts the text up to the next heading in a verdict box)
 and a :class:`Figure`. :func:`to_markdown` writes ``study_report.md``; :func:`to_html`
 renders the same items for ``study_report.html`` (figures embedded by the caller's
@@ -15,7 +16,15 @@ from dataclasses import dataclass
 import jinja2
 
 from otmm_qp.output.escape import escape
-from otmm_qp.output.markdown import heading_html, markdown_to_html
+from otmm_qp.output.markdown import (
+    Table,
+    heading_html,
+    markdown_to_html,
+    table_html,
+    table_markdown,
+)
+
+__all__ = ["Figure", "Heading", "Item", "Table", "to_html", "to_markdown"]
 
 
 @dataclass(frozen=True)
@@ -55,7 +64,7 @@ class Figure:
 
 
 #: One item of a document.
-Item = str | Heading | Figure
+Item = str | Heading | Figure | Table
 
 _PAGE = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_string(
     '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
@@ -65,8 +74,16 @@ _PAGE = jinja2.Environment(autoescape=False, keep_trailing_newline=True).from_st
 
 
 def to_markdown(items: Sequence[Item]) -> str:
-    """The Markdown of a document (one line per text item)."""
-    return "\n".join(item if isinstance(item, str) else item.markdown() for item in items)
+    """The Markdown of a document (one line per text item, a table's lines in a block)."""
+    return "\n".join(_markdown(item) for item in items)
+
+
+def _markdown(item: Item) -> str:
+    if isinstance(item, str):
+        return item
+    if isinstance(item, Table):
+        return "\n".join(table_markdown(item))
+    return item.markdown()
 
 
 def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figure], str]) -> str:
@@ -79,19 +96,19 @@ def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figur
         figure: The HTML of a figure (e.g. embedded as base64), or ``""`` to leave it out.
     """
     parts: list[str] = []
-    text: list[str] = []
+    text: list[str | Table] = []  # the run of text lines and tables up to the next heading
     boxed = False
     if items and items[-1] == "":  # the Markdown's final newline, not an empty paragraph
         items = items[:-1]
 
     def flush() -> None:
         if text:
-            body = markdown_to_html("\n".join(text))
+            body = _run_html(text)
             parts.append(f'<div class="verdict">{body}</div>' if boxed else body)
             text.clear()
 
     for item in items:
-        if isinstance(item, str):
+        if isinstance(item, (str, Table)):
             text.append(item)
             continue
         flush()
@@ -103,3 +120,25 @@ def to_html(items: Sequence[Item], title: str, css: str, figure: Callable[[Figur
             parts.append(figure(item))
     flush()
     return _PAGE.render(title=escape(title), css=css, body="\n".join(parts))
+
+
+def _run_html(run: Sequence[str | Table]) -> str:
+    """The HTML of a run of text lines and tables, up to the next heading or figure.
+
+    Each stretch of lines goes through :func:`markdown_to_html`, each table through
+    :func:`table_html`; the blocks are joined by a newline, as :func:`markdown_to_html` joins
+    its own (so a table reads as it did when it was Markdown lines of the run).
+    """
+    pieces: list[str] = []
+    lines: list[str] = []
+    for entry in [*run, None]:
+        if isinstance(entry, str):
+            lines.append(entry)
+            continue
+        html = markdown_to_html("\n".join(lines))
+        lines.clear()
+        if html:
+            pieces.append(html)
+        if entry is not None:
+            pieces.append(table_html(entry))
+    return "\n".join(pieces)

@@ -40,6 +40,7 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.metrics.table import metric
 from otmm_qp.output.pareto import dominates
 from otmm_qp.studies.columns import number
+from otmm_qp.studies.document import Table
 from otmm_qp.studies.formatting import fmt as _fmt
 from otmm_qp.studies.formatting import p_value as _p
 from otmm_qp.studies.oracle import REFERENCE_NAME
@@ -298,17 +299,15 @@ def summary_table(
     fronts: Sequence[GroupFront],
     ours: Callable[[str], bool] = _nobody,
     information: Mapping[str, str] | None = None,
-) -> list[str]:
-    """Markdown: per group the front, where *ours* sits, and who meets the criterion.
+) -> Table:
+    """Per group the front, where *ours* sits, and who meets the criterion.
 
     ``information`` (row name → information class, see ``Rows.information_labels``) labels
     every row name it holds: ``preview (preview 1 s)``.
     """
-    lines = [
-        "| robot | group | tasks | Pareto front of medians | ours | meets the criterion "
-        "(Holm: all pairs / best others) | best median on all objectives |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    headers = ["robot", "group", "tasks", "Pareto front of medians", "ours"]
+    headers += ["meets the criterion (Holm: all pairs / best others)"]
+    cells: list[list[str]] = []
     for g in fronts:
         mine = [r for r in g.rows if ours(r.name)]
         where = "; ".join(
@@ -325,28 +324,17 @@ def summary_table(
             ", ".join(with_information(n, information) for n in g.meeting(f)) or "none"
             for f in FAMILIES
         )
-        lines.append(
-            f"| {g.robot} | {g.group} | {g.tasks} | "
-            + ", ".join(_label(n, ours, information) for n in g.front)
-            + f" | {where or '–'} | {meeting} | "
-            + f"{with_information(g.best_on_all, information) if g.best_on_all else 'none'} |"
-        )
-    return lines
+        front = ", ".join(_label(n, ours, information) for n in g.front)
+        best = with_information(g.best_on_all, information) if g.best_on_all else "none"
+        cells.append([g.robot, g.group, str(g.tasks), front, where or "–", meeting, best])
+    return Table([*headers, "best median on all objectives"], cells)
 
 
-def detail_table(front: GroupFront, ours: Callable[[str], bool] = _nobody) -> list[str]:
-    """Markdown: every row's medians, front status and its paired tests against the best."""
-    headings = [f"median {metric(m).heading}" for m in front.objectives]
-    lines = [
-        "| row | "
-        + " | ".join(headings)
-        + " | front | "
-        + " | ".join(
-            f"vs best on {metric(m).label}: row, Holm p, outcome" for m in front.objectives
-        )
-        + " | verdict (all pairs / best others) |",
-        "|---|" + "---|" * (2 * len(front.objectives) + 2),
-    ]
+def detail_table(front: GroupFront, ours: Callable[[str], bool] = _nobody) -> Table:
+    """Every row's medians, front status and its paired tests against the best."""
+    headers = ["row", *(f"median {metric(m).heading}" for m in front.objectives), "front"]
+    headers += [f"vs best on {metric(m).label}: row, Holm p, outcome" for m in front.objectives]
+    rows: list[list[str]] = []
     for r in front.rows:
         place = (
             "**front**"
@@ -358,14 +346,9 @@ def detail_table(front: GroupFront, ours: Callable[[str], bool] = _nobody) -> li
             for c in r.comparisons
         ]
         cells += ["–"] * (len(front.objectives) - len(cells))
-        lines.append(
-            f"| {_label(r.name, ours)} | "
-            + " | ".join(_fmt(v) for v in r.medians)
-            + f" | {place} | "
-            + " | ".join(cells)
-            + f" | {r.verdict('all')} / {r.verdict('best')} |"
-        )
-    return lines
+        rows.append([_label(r.name, ours), *(_fmt(v) for v in r.medians), place, *cells])
+        rows[-1].append(f"{r.verdict('all')} / {r.verdict('best')}")
+    return Table([*headers, "verdict (all pairs / best others)"], rows)
 
 
 def _other_median(front: GroupFront, comparison: Comparison) -> float:

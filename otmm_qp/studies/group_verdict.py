@@ -19,6 +19,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from otmm_qp.metrics.table import metric
+from otmm_qp.output.markdown import table_markdown
+from otmm_qp.studies.document import Heading, Item, Table, to_markdown
 from otmm_qp.studies.fronts import (
     GroupFront,
     RowFront,
@@ -89,17 +91,15 @@ def kinds_table(
     ours: str,
     kinds: Mapping[str, list[dict[str, Any]]] | None = None,
 ) -> list[str]:
-    """Markdown: per kind of task the most accurate and the calmest front rows, and ours.
+    """Markdown lines: per kind of task the most accurate and the calmest front rows, and ours.
 
     With the rows of each kind (``kinds``, :func:`kind_rows`), the most accurate pick says in
     its cell how often it broke the arm's limits (:mod:`otmm_qp.studies.limit_keeping`).
     """
     heads = " / ".join(metric(m).label for m in fronts[0].objectives) if fronts else ""
-    lines = [
-        f"| task kind (tasks) | most accurate (medians {heads}) | lowest peak speed | `{ours}` "
-        "| meets the criterion (Holm: all pairs / best others) |",
-        "|---|---|---|---|---|",
-    ]
+    headers = ["task kind (tasks)", f"most accurate (medians {heads})", "lowest peak speed"]
+    headers += [f"`{ours}`", "meets the criterion (Holm: all pairs / best others)"]
+    lines: list[list[str]] = []
     for g in fronts:
         cells = []
         for k in (0, 1):
@@ -119,8 +119,8 @@ def kinds_table(
                 place = "not placed (an objective has no median)"
             where = f"{_medians(mine)}; {place}; {_verdict(mine)}"
         meeting = " / ".join(", ".join(g.meeting(f)) or "none" for f in ("all", "best"))
-        lines.append(f"| {g.group} ({g.tasks}) | {cells[0]} | {cells[1]} | {where} | {meeting} |")
-    return lines
+        lines.append([f"{g.group} ({g.tasks})", cells[0], cells[1], where, meeting])
+    return table_markdown(Table(headers, lines))
 
 
 def render(
@@ -137,13 +137,13 @@ def render(
     def mine(name: str) -> bool:
         return name == ours
 
-    lines = [counts_sentence(fronts, mine), ""]
+    items: list[Item] = [counts_sentence(fronts, mine), ""]
     if kinds:
-        return "\n".join(lines + kinds_table(fronts, ours, rows))
-    lines += summary_table(fronts, mine) + [""]
+        return to_markdown([*items, *kinds_table(fronts, ours, rows)])
+    items += [summary_table(fronts, mine), ""]
     for g in fronts:
-        lines += [f"### {g.robot} / {g.group}", "", *detail_table(g, mine), ""]
-    return "\n".join(lines)
+        items += [Heading(3, f"{g.robot} / {g.group}"), "", detail_table(g, mine), ""]
+    return to_markdown(items)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -27,19 +27,28 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from scipy import stats
 
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.studies.criteria import INTERFACE_COLUMNS
 from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
-from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
+from otmm_qp.studies.statistics import (
+    PairedRates,
+    PairedResult,
+    holm,
+    mcnemar_exact,
+    paired_test,
+)
 
-__all__ = ["headline", "limit_cost", "main", "pair_cost", "plant_rows"]
+__all__ = ["PairedRows", "headline", "limit_cost", "main", "pair_cost", "pair_rows", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
@@ -101,13 +110,11 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
             a, b = (np.array(x, dtype=float) for x in zip(*pairs, strict=True))
             tests.append(((p, c), paired_test(p, reference, a, b)))
     adjusted = dict(zip([k for k, _ in tests], holm([t.p_value for _, t in tests]), strict=True))
-    lines = [
-        "| plant | controller | rank | success % | median max error [m] | Δ error vs "
-        f"{reference}: tasks where {reference} is lower / tied / higher, Holm p | "
-        "median peak speed [rad/s] | median peak jerk [rad/s³] | interface aborts | "
-        "mean filter switches | median peak τ/τ_max | saturated episodes % |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|",
-    ]
+    headers = ["plant", "controller", "rank", "success %", "median max error [m]"]
+    headers += [f"Δ error vs {reference}: tasks where {reference} is lower / tied / higher, Holm p"]
+    headers += ["median peak speed [rad/s]", "median peak jerk [rad/s³]", "interface aborts"]
+    headers += ["mean filter switches", "median peak τ/τ_max", "saturated episodes %"]
+    cells: list[list[str]] = []
     for p in plants:
         for c in controllers:
             group = groups[p, c]
@@ -117,15 +124,18 @@ def headline(rows: list[dict[str, Any]], reference: str = "ideal") -> str:
                 versus = f"{test.higher} / {test.ties} / {test.lower}, {adjusted[p, c]:.2g}"
             ratio = _median([r["peak_torque_ratio"] for r in group])
             saturated = 100.0 * float(np.mean([(r["saturated_steps"] or 0) > 0 for r in group]))
-            lines.append(
-                f"| {p} | {c} | {ranks[p][c]} | {rate[p, c]:.0f} | {error[p, c]:.3g} | {versus} "
-                f"| {_median([r['max_joint_speed'] for r in group]):.3g} "
-                f"| {_median([r.get('max_command_jerk', math.nan) for r in group]):.3g} "
-                f"| {sum(1 for r in group if _aborted(r))} "
-                f"| {float(np.mean([r['filter_switches'] or 0 for r in group])):.2f} "
-                f"| {'—' if math.isnan(ratio) else f'{ratio:.2f}'} "
-                f"| {'—' if math.isnan(ratio) else f'{saturated:.0f}'} |"
+            cells.append(
+                [p, c, str(ranks[p][c]), f"{rate[p, c]:.0f}", f"{error[p, c]:.3g}", versus]
             )
+            cells[-1] += [
+                f"{_median([r['max_joint_speed'] for r in group]):.3g}",
+                f"{_median([r.get('max_command_jerk', math.nan) for r in group]):.3g}",
+                str(sum(1 for r in group if _aborted(r))),
+                f"{float(np.mean([r['filter_switches'] or 0 for r in group])):.2f}",
+                "—" if math.isnan(ratio) else f"{ratio:.2f}",
+                "—" if math.isnan(ratio) else f"{saturated:.0f}",
+            ]
+    lines = table_markdown(Table(headers, cells, "llrrrlrrrrrr"))
     lines.append("")
     for p in plants:
         if p == reference:
@@ -163,45 +173,126 @@ def plant_rows(out: Path) -> list[dict[str, Any]]:
     return rows
 
 
+#: A row's task: the same (robot, generator, index) under every controller and plant.
+TaskKey = tuple[Any, Any, Any]
+#: The label of a row compared by :func:`pair_rows` (a name, or a (plant, controller) pair).
+Label = TypeVar("Label", bound=Hashable)
+
+
+def _task(row: dict[str, Any]) -> TaskKey:
+    return (row["robot"], row["generator"], row["task_index"])
+
+
+@dataclass(frozen=True)
+class PairedRows:
+    """Two rows of a study compared on the tasks both ran (:func:`pair_rows`).
+
+    Attributes:
+        new: The first row's printed name.
+        old: The second row's printed name.
+        tasks: Number of tasks both ran (the sorted intersection of their tasks).
+        aborts: Episodes the arm's interface would abort, (new, old), on those tasks.
+        past_limit: Episodes with a position-limit violation, (new, old), on those tasks.
+        success: Success rates [%], (new, old), on those tasks.
+        rates: The exact McNemar test of success (new = A).
+        errors: The paired Wilcoxon test of the max error [m] (new = A).
+        p_rates: Holm-adjusted p of ``rates`` over the pairs compared together.
+        p_errors: Holm-adjusted p of ``errors`` over the pairs compared together.
+    """
+
+    new: str
+    old: str
+    tasks: int
+    aborts: tuple[int, int]
+    past_limit: tuple[int, int]
+    success: tuple[float, float]
+    rates: PairedRates
+    errors: PairedResult
+    p_rates: float
+    p_errors: float
+
+
+def pair_rows(
+    by: Mapping[Label, Mapping[TaskKey, dict[str, Any]]],
+    pairs: Sequence[tuple[Label, Label]],
+    names: Sequence[tuple[str, str]],
+) -> list[PairedRows]:
+    """Each ``(new, old)`` pair of ``by``'s rows on the same tasks, Holm over the pairs.
+
+    The one pairing of the plants headline: the tasks are the sorted intersection of the two
+    rows' tasks; every count, rate and test is taken on them.
+
+    Args:
+        by: Row label → task → episode row.
+        pairs: The ``(new, old)`` labels compared.
+        names: The printed ``(new, old)`` names of each pair.
+    """
+    found = [_pair(by[new], by[old], *name) for (new, old), name in zip(pairs, names, strict=True)]
+    p_rates = holm([f.rates.p_value for f in found])
+    p_errors = holm([f.errors.p_value for f in found])
+    return [
+        replace(f, p_rates=rate, p_errors=error)
+        for f, rate, error in zip(found, p_rates, p_errors, strict=True)
+    ]
+
+
+def _pair(
+    new_rows: Mapping[TaskKey, dict[str, Any]],
+    old_rows: Mapping[TaskKey, dict[str, Any]],
+    new: str,
+    old: str,
+) -> PairedRows:
+    """One pair on the sorted intersection of its tasks (Holm p: not yet adjusted, NaN)."""
+    tasks = sorted(set(new_rows) & set(old_rows), key=str)
+    a, b = [new_rows[t] for t in tasks], [old_rows[t] for t in tasks]
+    success = [np.array([bool(r["success"]) for r in x], dtype=bool) for x in (a, b)]
+    maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
+    aborts = [sum(_aborted(r) for r in x) for x in (a, b)]
+    past = [sum((r["position_violations"] or 0) > 0 for r in x) for x in (a, b)]
+    return PairedRows(
+        new,
+        old,
+        len(tasks),
+        (aborts[0], aborts[1]),
+        (past[0], past[1]),
+        (100.0 * float(np.mean(success[0])), 100.0 * float(np.mean(success[1]))),
+        mcnemar_exact(new, old, success[0], success[1]),
+        paired_test(new, old, maxima[0], maxima[1]),
+        math.nan,
+        math.nan,
+    )
+
+
+def _mcnemar_cell(pair: PairedRows) -> str:
+    return f"{pair.rates.a_only} / {pair.rates.b_only}, {pair.p_rates:.2g}"
+
+
+def _error_cell(pair: PairedRows) -> str:
+    t = pair.errors
+    return f"{t.lower} / {t.ties} / {t.higher}, {pair.p_errors:.2g}"
+
+
 def limit_cost(rows: list[dict[str, Any]], new: str = "qp", old: str = "qp-box") -> str:
     """Markdown: ``new`` against ``old`` per plant on the same tasks (see the module)."""
-    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
-    by: dict[tuple[str, str], dict[Any, dict[str, Any]]] = {}
+    by: dict[tuple[str, str], dict[TaskKey, dict[str, Any]]] = {}
     for row in rows:
         base = str(row["controller"]).rsplit("@", 1)[0]
         if base in (new, old):
-            by.setdefault((str(row["plant"]), base), {})[key(row)] = row
+            by.setdefault((str(row["plant"]), base), {})[_task(row)] = row
     plants = [p for p in dict.fromkeys(p for p, _ in by) if (p, new) in by and (p, old) in by]
     if not plants:
         return ""
-    rates, errors = [], []
-    for p in plants:
-        tasks = sorted(set(by[p, new]) & set(by[p, old]), key=str)
-        a = [by[p, new][t] for t in tasks]
-        b = [by[p, old][t] for t in tasks]
-        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
-        rates.append(mcnemar_exact(new, old, success[0], success[1]))
-        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
-        errors.append(paired_test(new, old, maxima[0], maxima[1]))
-    p_rates = holm([r.p_value for r in rates])
-    p_errors = holm([t.p_value for t in errors])
-    lines = [
-        f"| plant | episodes with a position-limit violation: {new} / {old} | success %: "
-        f"{new} / {old} | tasks only {new} / only {old} succeeds, Holm p | max error: tasks "
-        f"{new} lower / tied / higher, Holm p |",
-        "|---|---:|---:|---|---|",
+    pairs = pair_rows(by, [((p, new), (p, old)) for p in plants], [(new, old)] * len(plants))
+    headers = ["plant", f"episodes with a position-limit violation: {new} / {old}"]
+    headers += [f"success %: {new} / {old}", f"tasks only {new} / only {old} succeeds, Holm p"]
+    headers += [f"max error: tasks {new} lower / tied / higher, Holm p"]
+    cells = [
+        [p, f"{pair.past_limit[0]} / {pair.past_limit[1]}"]
+        + [f"{pair.success[0]:.0f} / {pair.success[1]:.0f}", _mcnemar_cell(pair)]
+        + [_error_cell(pair)]
+        for p, pair in zip(plants, pairs, strict=True)
     ]
-    for i, p in enumerate(plants):
-        pair = (list(by[p, new].values()), list(by[p, old].values()))
-        violations = [sum((r["position_violations"] or 0) > 0 for r in x) for x in pair]
-        percent = [100.0 * float(np.mean([bool(r["success"]) for r in x])) for x in pair]
-        r, t = rates[i], errors[i]
-        lines.append(
-            f"| {p} | {violations[0]} / {violations[1]} | {percent[0]:.0f} / {percent[1]:.0f} | "
-            f"{r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
-            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
-        )
-    return "\n".join(lines) + "\n"
+    return "\n".join(table_markdown(Table(headers, cells, "lrrll"))) + "\n"
 
 
 def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
@@ -215,48 +306,23 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
     Raises:
         ConfigError: A named row that the study does not hold.
     """
-    key = lambda r: (r["robot"], r["generator"], r["task_index"])  # noqa: E731
-    by: dict[str, dict[Any, dict[str, Any]]] = {}
+    by: dict[str, dict[TaskKey, dict[str, Any]]] = {}
     for row in rows:
-        by.setdefault(str(row["controller"]), {})[key(row)] = row
+        by.setdefault(str(row["controller"]), {})[_task(row)] = row
     for name in (name for pair in pairs for name in pair):
         if name not in by:
             raise ConfigError("--pair", f"no rows {name!r:.60}; have: {', '.join(sorted(by))}")
-    rates, errors = [], []
-    counts: list[tuple[tuple[int, int, float], tuple[int, int, float], int]] = []
-    for new, old in pairs:
-        tasks = sorted(set(by[new]) & set(by[old]), key=str)
-        a, b = [by[new][t] for t in tasks], [by[old][t] for t in tasks]
-        success = [np.array([bool(r["success"]) for r in x]) for x in (a, b)]
-        rates.append(mcnemar_exact(new, old, success[0], success[1]))
-        maxima = [np.array([r["max_error"] for r in x], dtype=float) for x in (a, b)]
-        errors.append(paired_test(new, old, maxima[0], maxima[1]))
-        tallies = [
-            (
-                sum(_aborted(r) for r in x),
-                sum((r["position_violations"] or 0) > 0 for r in x),
-                100.0 * float(np.mean(success[i])),
-            )
-            for i, x in enumerate((a, b))
-        ]
-        counts.append((tallies[0], tallies[1], len(tasks)))
-    p_rates = holm([r.p_value for r in rates])
-    p_errors = holm([t.p_value for t in errors])
-    lines = [
-        "| new / old | tasks | interface aborts | past a position limit | success % | tasks "
-        "only new / only old succeeds, Holm p | max error: tasks new lower / tied / higher, "
-        "Holm p |",
-        "|---|---:|---:|---:|---:|---|---|",
+    headers = ["new / old", "tasks", "interface aborts", "past a position limit", "success %"]
+    headers += ["tasks only new / only old succeeds, Holm p"]
+    headers += ["max error: tasks new lower / tied / higher, Holm p"]
+    cells = [
+        [f"{pair.new} / {pair.old}", str(pair.tasks)]
+        + [f"{pair.aborts[0]} / {pair.aborts[1]}", f"{pair.past_limit[0]} / {pair.past_limit[1]}"]
+        + [f"{pair.success[0]:.0f} / {pair.success[1]:.0f}", _mcnemar_cell(pair)]
+        + [_error_cell(pair)]
+        for pair in pair_rows(by, pairs, pairs)
     ]
-    for i, (new, old) in enumerate(pairs):
-        (abort_a, past_a, rate_a), (abort_b, past_b, rate_b), count = counts[i]
-        r, t = rates[i], errors[i]
-        lines.append(
-            f"| {new} / {old} | {count} | {abort_a} / {abort_b} | {past_a} / {past_b} | "
-            f"{rate_a:.0f} / {rate_b:.0f} | {r.a_only} / {r.b_only}, {p_rates[i]:.2g} | "
-            f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
-        )
-    return "\n".join(lines) + "\n"
+    return "\n".join(table_markdown(Table(headers, cells, "lrrrrll"))) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:

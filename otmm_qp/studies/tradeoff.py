@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
+from otmm_qp.output.markdown import Table, table_markdown
 from otmm_qp.reference import LABELS, ReferenceResult, solve_reference
 from otmm_qp.reference.solve import SETTLE
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -377,15 +378,12 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
         groups: The groups of :func:`study_tradeoff`.
         floor: The :func:`resolution` the tests clipped errors at [m] (named in the text).
     """
-    lines = [
-        "| robot | group | calm row | accurate row | tasks | median speed cap [rad/s] "
-        "| median error: bounded optimum / accurate / calm [m] "
-        "| bounded − accurate: lower/tied/higher, median [m], Holm p "
-        "| bounded − calm: lower/tied/higher, Holm p "
-        "| lower bound > accurate (tasks) "
-        "| solves achievable/unachievable/undecided/failed | trade-off |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    headers = ["robot", "group", "calm row", "accurate row", "tasks", "median speed cap [rad/s]"]
+    headers += ["median error: bounded optimum / accurate / calm [m]"]
+    headers += ["bounded − accurate: lower/tied/higher, median [m], Holm p"]
+    headers += ["bounded − calm: lower/tied/higher, Holm p", "lower bound > accurate (tasks)"]
+    headers += ["solves achievable/unachievable/undecided/failed", "trade-off"]
+    cells: list[list[str]] = []
     for g in groups:
         status = [sum(t.status == s for t in g.tasks) for s in LABELS]
         certified = sum(t.bounded_lower > t.accurate_error for t in g.tasks)
@@ -394,14 +392,12 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
             _fmt(float(np.median([getattr(t, f) for t in g.tasks])))
             for f in ("bounded_error", "accurate_error", "calm_error")
         )
-        lines.append(
-            f"| {g.robot} | {g.group} | {g.calm} | {g.accurate} | {len(g.tasks)} "
-            f"| {_fmt(float(np.median([t.bound for t in g.tasks])))} | {medians} "
-            f"| {_counts(a)}, {_fmt(a.median_difference.value)}, {_fmt(g.holm_accurate)} "
-            f"| {_counts(c)}, {_fmt(g.holm_calm)} | {certified} "
-            f"| {'/'.join(map(str, status))} "
-            f"| {g.outcome()} |"
-        )
+        cells.append([g.robot, g.group, g.calm, g.accurate, str(len(g.tasks))])
+        cells[-1] += [_fmt(float(np.median([t.bound for t in g.tasks]))), medians]
+        cells[-1] += [f"{_counts(a)}, {_fmt(a.median_difference.value)}, {_fmt(g.holm_accurate)}"]
+        cells[-1] += [f"{_counts(c)}, {_fmt(g.holm_calm)}", str(certified)]
+        cells[-1] += ["/".join(map(str, status)), g.outcome()]
+    lines = table_markdown(Table(headers, cells))
     counts = {o: sum(g.outcome() == o for g in groups) for o in OUTCOMES}
     tasks = sum(len(g.tasks) for g in groups)
     above = sum(g.vs_accurate.higher for g in groups)

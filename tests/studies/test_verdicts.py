@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from otmm_qp.studies.report import load_rows
+from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.verdicts import (
     TaskGroup,
     accuracy_verdict,

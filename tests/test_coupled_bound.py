@@ -13,7 +13,7 @@ from otmm_qp.exceptions import ParameterError
 from otmm_qp.reference import ReferenceSettings
 from otmm_qp.reference.bound import lower_bound
 from otmm_qp.reference.certificates import recompute
-from otmm_qp.reference.coupled_bound import CoupledSearch, coupled_certificate, merge
+from otmm_qp.reference.coupled_bound import STALL, CoupledSearch, coupled_certificate, merge
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
@@ -86,6 +86,19 @@ def test_a_stopped_propagation_certifies_nothing() -> None:
     assert outcome.sample is None
     assert outcome.boxes <= 200  # the budget, counted in boxes
     assert outcome.reached < 20
+
+
+def test_a_propagation_that_prunes_nothing_stops_at_the_stall() -> None:
+    """A tolerance of 10 m keeps every configuration: the set is the speed box each sample."""
+    robot = PlanarArm([0.6, 0.4], velocity_limits=[1.0, 1.0])
+    q0 = np.array([0.2, 0.9])
+    targets = [robot.forward(q0)] * 40
+    problem = TrackingProblem(
+        robot, Table(targets), q0, DT, 40 * DT, ReferenceSettings(position_tolerance=10.0)
+    )
+    outcome = CoupledSearch(problem).run()
+    assert outcome.sample is None
+    assert outcome.reached == STALL
 
 
 def test_recompute_refuses_a_malformed_certificate() -> None:

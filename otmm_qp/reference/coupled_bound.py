@@ -22,8 +22,9 @@ union is merged into ``CAP`` covering boxes (median splits of the centres, each 
 so every set stays an over-approximation and the certificate stays valid.
 
 **Budget**: boxes evaluated per sample and per task are counts, not seconds, so a stored
-certificate reproduces on any machine; a propagation stopped by its budget or the horizon
-certifies nothing.
+certificate reproduces on any machine; the propagation also stops once ``STALL`` samples in a
+row span the whole speed box ``B_k`` (nothing coupled: the per-sample bound sees as much).
+A propagation stopped by its budget, its stall or the horizon certifies nothing.
 
 **Value**: all boxes dropped had an enclosure of at least ``L`` (the smallest of them, > 1);
 the same propagation with any threshold ``g < L`` in place of 1 drops the same boxes, so
@@ -50,11 +51,14 @@ from otmm_qp.robots.robot import FloatArray
 #: Boxes kept from one sample to the next (merged into covering boxes beyond it).
 CAP = 192
 #: Boxes evaluated per sample at most (the refinement of that sample's set).
-SAMPLE_BOXES = 3072
+SAMPLE_BOXES = 2048
 #: Boxes evaluated per task at most (past it: no certificate).
-TASK_BOXES = 100_000
+TASK_BOXES = 60_000
 #: Boxes bisected at once.
 BATCH = 512
+#: Samples in a row whose set spans the whole speed box ``B_k`` after which the propagation
+#: stops (no coupling gained: the per-sample bound sees the same box).
+STALL = 8
 #: Relative and absolute room on the widening ``s`` (rounding of the candidate's steps).
 WIDEN = 4.0 * STEP_SLACK
 
@@ -111,6 +115,7 @@ class CoupledSearch:
         high_box = search.q0[None, :].copy()
         dropped = math.inf
         boxes = 0
+        stalled = 0
         for sample in range(1, last + 1):
             low_box = np.maximum(low_box - self.widen, search.lower)
             high_box = np.minimum(high_box + self.widen, search.upper)
@@ -122,9 +127,27 @@ class CoupledSearch:
             dropped = min(dropped, smallest)
             if low_box.shape[0] == 0:
                 return CoupledBound(sample, inward(dropped), boxes, sample)
+            stalled = stalled + 1 if self._spans(sample, low_box, high_box) else 0
+            if stalled >= STALL:
+                return CoupledBound(None, 0.0, boxes, sample)
             if low_box.shape[0] > cap:
                 low_box, high_box = merge(low_box, high_box, cap)
         return CoupledBound(None, 0.0, boxes, last)
+
+    def _spans(self, sample: int, low_box: FloatArray, high_box: FloatArray) -> bool:
+        """Whether the boxes' hull is the whole ``[l, u] ∩ [q0 − k s, q0 + k s]``.
+
+        A stop rule only: it never decides a certificate.
+        """
+        search = self.search
+        reach = sample * self.widen
+        low = np.maximum(search.lower, search.q0 - reach)
+        high = np.minimum(search.upper, search.q0 + reach)
+        room = 1e-9 * (1.0 + reach)  # the repeated widening rounds differently from k·s
+        return bool(
+            np.all(np.min(low_box, axis=0) <= low + room)
+            and np.all(np.max(high_box, axis=0) >= high - room)
+        )
 
     def _refine(
         self, sample: int, low_box: FloatArray, high_box: FloatArray, budget: int

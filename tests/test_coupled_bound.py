@@ -229,3 +229,36 @@ def test_the_enclosure_is_below_the_merit_of_every_configuration_in_its_box(name
         errors = np.array([robot.task_error(target, robot.forward(q)) for q in configurations])
         assert bound <= float(np.min(problem.merits(errors)))
     assert float(np.max(low)) > 0.0  # the bound is not trivially 0
+
+
+@settings(max_examples=6, deadline=None)
+@given(
+    lengths=st.lists(st.floats(0.3, 0.9), min_size=2, max_size=3),
+    seed=st.integers(0, 2**16),
+    reach=st.floats(0.3, 1.3),
+    duration=st.floats(0.4, 2.0),
+)
+def test_the_references_own_path_is_never_certified_against(
+    lengths: list[float], seed: int, reach: float, duration: float
+) -> None:
+    """Soundness on paths the reference produced: when its best path meets every tolerance
+    the propagation certifies nothing; when it certifies, the best path misses (upper > 1)
+    and the certified value is below the path's merit."""
+    from otmm_qp.reference import solve_reference
+    from otmm_qp.trajectories.waypoints import WaypointsTrajectory
+
+    rng = np.random.default_rng(seed)
+    robot = PlanarArm(lengths, velocity_limits=[1.5] * len(lengths))
+    q0 = rng.uniform(-2.0, 2.0, len(lengths))
+    x0 = robot.forward(q0)
+    angle = rng.uniform(-np.pi, np.pi)
+    goal = reach * sum(lengths) * np.array([np.cos(angle), np.sin(angle)])
+    trajectory = WaypointsTrajectory(x0, [goal], duration=duration)
+    tolerances = ReferenceSettings(position_tolerance=TOLERANCE, speed_limit=1.5)
+    result, problem = solve_reference(robot, trajectory, q0, DT, duration + 0.1, tolerances)
+    outcome = CoupledSearch(problem).run(sample_boxes=800, task_boxes=15_000, cap=48)
+    merit = float(np.max(problem.merits(result.errors)))
+    if merit <= 1.0:
+        assert outcome.sample is None
+    if outcome.sample is not None:
+        assert outcome.merit <= merit

@@ -49,7 +49,7 @@ from otmm_qp.reference.sample_bound import SampleSearch, inward
 from otmm_qp.robots.robot import FloatArray
 
 #: Boxes kept from one sample to the next (merged into covering boxes beyond it).
-CAP = 192
+CAP = 16
 #: Boxes evaluated per sample at most (the refinement of that sample's set).
 SAMPLE_BOXES = 2048
 #: Boxes evaluated per task at most (past it: no certificate).

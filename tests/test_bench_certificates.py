@@ -52,3 +52,17 @@ def test_stored_certificates_recompute_exactly(tmp_path: Path) -> None:
     check = numbers["certificates"]
     assert check["tasks"] >= 1
     assert check["exact"] == check["tasks"]
+
+
+def test_bench_coupled_planar_labels_every_task(capsys: Any) -> None:
+    root = Path(__file__).resolve().parent.parent
+    spec = importlib.util.spec_from_file_location(
+        "bench_coupled_planar", root / "benchmarks" / "bench_coupled_planar.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--tasks", "3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for line in lines[1:3]:  # without / with: the three tasks, each labelled once
+        assert sum(int(part.split()[-1]) for part in line.split(":")[1].split(",")) == 3

@@ -7,8 +7,9 @@ Every path within the limits that meets the tolerances at every sample (``m_k �
     R_0 = \{q_0\},\qquad
     R_k = \big((R_{k-1} \oplus [-s, s]) \cap [l, u]\big) \cap \{q : m_k(q) \le 1\},
 
-``s = v_{max}\,dt\,(1 + \text{STEP\_SLACK})`` per joint (the step a candidate path may take,
-:mod:`.limits`, so a controller's path is covered too) [rad or m]. ``R_k = ∅`` at any ``k``
+``s = v_{max}\,dt\,(1 + 4\,\text{STEP\_SLACK}) + 10^{-12}`` per joint [rad or m], above the
+step a candidate path may take (``v_max dt (1 + STEP_SLACK)``, :mod:`.limits`), so a
+controller's path is covered too. ``R_k = ∅`` at any ``k``
 certifies that no such path exists (the task is ``unachievable``); this is the *speed
 coupling* the per-sample bound (:mod:`.sample_bound`, ``R_k`` without the ``R_{k-1}`` term)
 leaves out.

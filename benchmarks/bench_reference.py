@@ -5,6 +5,7 @@
     python benchmarks/bench_reference.py --tasks 200 --check 20    # + independent re-solve
     python benchmarks/bench_reference.py --stored DIR --check 40   # check a stored study only
     python benchmarks/bench_reference.py --stored DIR --compare BASE  # verdicts of DIR vs BASE
+    python benchmarks/bench_reference.py --stored DIR --certificates 40  # recompute 40 certificates
 
 Scales the study's generator counts to about ``--tasks`` tasks in total (0: the study as
 shipped), runs it into a fresh directory (``--workers 1``: in-process; more: an embedded
@@ -19,6 +20,10 @@ Dask LocalCluster) and reports, from the stored rows and the run's outcome:
   by a second method (:func:`otmm_qp.reference.independent.slsqp_upper`, SLSQP from the
   damped-IK start and from the stored reference's best start), and how many it improves by
   more than 5 % (target: ≤ 5 % of them);
+* per robot × generator, the certificates of its unachievable tasks by kind (``reach``,
+  ``travel``, ``turn``, ``search``, ``coupled``: :mod:`otmm_qp.reference.certificates`);
+  with ``--certificates N``: ``N`` sampled certificates recomputed from their definition,
+  and how many give the stored lower bound to the last bit;
 * with ``--compare BASE``: what the study's references change against a stored study ``BASE``
   of the same tasks and controllers (another polish cap, another solver), judged as the report
   judges (:func:`compare`).
@@ -76,8 +81,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for name, group in sorted(groups.items()):
         seconds = [float(r["reference.seconds"]) for r in group if r.get("reference.seconds")]
         statuses: dict[str, int] = defaultdict(int)
+        kinds: dict[str, int] = defaultdict(int)
         for r in group:
             statuses[str(r["reference.status"])] += 1
+            if r["reference.status"] == "unachievable":
+                kinds[str(r.get("reference.certificate") or "none").split("@")[0]] += 1
         gaps = [
             float(r["reference.upper"]) - float(r["reference.lower"])
             for r in group
@@ -86,6 +94,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         table[name] = {
             "tasks": len(group),
             "status": dict(statuses),
+            "certificates": dict(sorted(kinds.items())),
             "median_gap": statistics.median(gaps) if gaps else float("nan"),
             "median_s": statistics.median(seconds) if seconds else float("nan"),
             "p90_s": float(np.percentile(seconds, 90)) if seconds else float("nan"),
@@ -93,6 +102,32 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "total_s": sum(seconds),
         }
     return table
+
+
+def certificate_check(
+    config: StudyConfig, rows: list[dict[str, Any]], count: int
+) -> dict[str, Any]:
+    """Recompute ``count`` stored certificates (every ``k``-th task that has one) from their
+    definition (:func:`otmm_qp.reference.certificates.recompute`); count exact matches."""
+    from otmm_qp.reference.certificates import recompute
+    from otmm_qp.reference.problem import TrackingProblem
+    from otmm_qp.studies.oracle import reference_settings
+    from otmm_qp.studies.tradeoff import rebuild_task
+
+    held = [r for r in rows if str(r.get("reference.certificate") or "none") != "none"]
+    if count <= 0 or not held:
+        return {"tasks": 0, "exact": 0, "kinds": {}}
+    chosen = held[:: max(1, len(held) // count)][:count]
+    exact = 0
+    kinds: dict[str, int] = defaultdict(int)
+    for row in chosen:
+        robot, _, task, duration = rebuild_task(config, row)
+        problem = TrackingProblem(
+            robot, task.trajectory, task.q0, config.dt, duration, reference_settings(config)
+        )
+        exact += recompute(problem, str(row["reference.certificate"])) == row["reference.lower"]
+        kinds[str(row["reference.certificate"]).split("@")[0]] += 1
+    return {"tasks": len(chosen), "exact": exact, "kinds": dict(sorted(kinds.items()))}
 
 
 def independent_check(
@@ -267,8 +302,10 @@ def _print_compare(numbers: dict[str, Any], base: Path) -> None:
           f"{numbers['unpassed']['other']}")  # fmt: skip
 
 
-def _check_stored(out: Path, count: int, target: Path | None, base: Path | None = None) -> int:
-    """The labels table and the independent check of the study stored in ``out``."""
+def _check_stored(
+    out: Path, count: int, target: Path | None, base: Path | None = None, certificates: int = 0
+) -> int:
+    """The labels table and the independent checks of the study stored in ``out``."""
     from otmm_qp.studies.storage import read_study_folder
 
     config, _ = read_study_folder(out)
@@ -277,9 +314,12 @@ def _check_stored(out: Path, count: int, target: Path | None, base: Path | None 
         r for r in (table.to_pylist() if table is not None else []) if r["controller"] == "oracle"
     ]
     check = independent_check(config, rows, count)
+    recomputed = certificate_check(config, rows, certificates)
+    groups = summarise(rows)
     print(f"{out}: {len(rows)} tasks (stored)")
     _print_check(check)
-    numbers: dict[str, Any] = {"groups": summarise(rows), "check": check}
+    _print_certificates(groups, recomputed)
+    numbers: dict[str, Any] = {"groups": groups, "check": check, "certificates": recomputed}
     if base is not None:
         numbers["compare"] = compare(base, out)
         _print_compare(numbers["compare"], base)
@@ -296,6 +336,18 @@ def _print_check(check: dict[str, Any]) -> None:
               f"largest improvement {100 * check['largest']:.1f} %")  # fmt: skip
 
 
+def _print_certificates(groups: dict[str, Any], check: dict[str, Any]) -> None:
+    kinds: dict[str, int] = defaultdict(int)
+    for group in groups.values():
+        for kind, count in group["certificates"].items():
+            kinds[kind] += count
+    listed = ", ".join(f"{kind} {count}" for kind, count in sorted(kinds.items()))
+    print(f"certificates of unachievable tasks: {listed or 'none'}")
+    if check["tasks"]:
+        print(f"certificates recomputed from their definition: {check['exact']} of "
+              f"{check['tasks']} give the stored bound exactly ({check['kinds']})")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print (and optionally write) its numbers."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -304,6 +356,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     parser.add_argument("--check", type=int, default=0, help="re-solve this many tasks by SLSQP")
+    parser.add_argument(
+        "--certificates", type=int, default=0, help="recompute this many stored certificates"
+    )
     parser.add_argument("--out", type=Path, help="keep the study here (default: a temp dir)")
     parser.add_argument(
         "--stored", type=Path, help="read this stored study instead of running one (--check only)"
@@ -313,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     if args.stored is not None:
-        return _check_stored(args.stored, args.check, args.json, args.compare)
+        return _check_stored(args.stored, args.check, args.json, args.compare, args.certificates)
     if args.compare is not None and args.out is None:
         parser.error("--compare needs --out (the run is read back from it)")
     config = scaled(args.config, args.tasks)
@@ -342,6 +397,7 @@ def main(argv: list[str] | None = None) -> int:
         "per_task_s": reference_s / len(rows) if rows else float("nan"),
         "groups": summarise(rows),
         "check": independent_check(config, rows, args.check),
+        "certificates": certificate_check(config, rows, args.certificates),
     }
     if args.compare is not None and args.out is not None:
         results["compare"] = compare(args.compare, args.out)
@@ -357,6 +413,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {name} | {group['tasks']} | {counts} | {gap:.3g} | "
               + " | ".join(f"{t:.3f}" for t in times) + " |")  # fmt: skip
     _print_check(results["check"])
+    _print_certificates(results["groups"], results["certificates"])
     print(f"reference {reference_s:.1f} s of {outcome.compute_seconds:.1f} s compute "
           f"= {100 * results['reference_share']:.1f} % "
           f"({results['per_task_s']:.3f} s per task)")  # fmt: skip

@@ -10,11 +10,13 @@ do not move the frame are left out.
 
 **Enclosure** of ``m_k`` on a box of centre ``c`` and half-widths ``h`` (chain joints):
 
-* position, the larger of a first-order and a second-order form [m]:
+* position, the largest of a first-order and two second-order forms [m]:
   ``‖e_pos(q)‖ ≥ ‖e_pos(c)‖ − Σ_i λ_i min(h_i, 2)`` (moving the joints one after another,
   revolute ``i`` moves the frame along a chord ``≤ λ_i min(h_i, 2)``; prismatic by ``h_i``),
   and ``‖e_pos(q)‖ ≥ ‖e_pos(c)‖ − Σ_i ‖J_i(c)‖ h_i − ½ Σ_ij λ_{max(i,j)} h_i h_j``
-  (Taylor with ``‖∂²p/∂q_i∂q_j‖ ≤ λ_{max(i,j)}``, see :mod:`.reach`);
+  (Taylor with ``‖∂²p/∂q_i∂q_j‖ ≤ λ_{max(i,j)}``, see :mod:`.reach`), and the same along
+  the error's direction ``u = e_pos(c)/‖e_pos(c)‖``: ``‖e_pos(q)‖ ≥ u·e_pos(q) ≥ ‖e_pos(c)‖
+  − Σ_i |u·J_i(c)| h_i − ½ Σ_ij λ_{max(i,j)} h_i h_j`` (the columns across ``u`` do not count);
 * orientation [rad] (bi-invariance of the geodesic distance, each revolute joint turns the
   frame by at most its angle): ``‖e_rot(q)‖ ≥ ‖e_rot(c)‖ − Σ_{revolute} min(h_i, π)``;
 
@@ -74,11 +76,8 @@ class SampleSearch:
         self.upper = problem.upper[columns]
         self.step = problem.step[columns]
         self.q0 = problem.q0[columns]
-        self.levers = self.chain.levers(*self._box(problem.samples - 1))
         self.revolute = ~self.chain.prismatic
-        size = self.chain.size
-        later = np.maximum.outer(np.arange(size), np.arange(size))
-        self.curvature = self.levers[later]
+        self.use_box(*self._box(problem.samples - 1))
         settings = problem.settings
         self.position_scale = (
             1.0 / settings.position_tolerance if settings.position_tolerance is not None else 0.0
@@ -88,6 +87,12 @@ class SampleSearch:
             if problem.pose and settings.orientation_tolerance is not None
             else 0.0
         )
+
+    def use_box(self, lower: FloatArray, upper: FloatArray) -> None:
+        """Levers ``λ`` and curvature ``λ_{max(i,j)}`` valid on every box in ``[lower, upper]``."""
+        self.levers = self.chain.levers(lower, upper)
+        size = self.chain.size
+        self.curvature = self.levers[np.maximum.outer(np.arange(size), np.arange(size))]
 
     def _box(self, sample: int) -> tuple[FloatArray, FloatArray]:
         """``B_k`` in chain coordinates (a revolute range wider than 2π: a circle)."""
@@ -117,23 +122,61 @@ class SampleSearch:
         p, frames, origins, omegas = self.chain.forward(centres)
         dim = self.chain.dim
         error = np.linalg.norm(p[:, :dim] - position[:dim], axis=1)
-        columns = np.linalg.norm(self.chain.jacobian(p, origins, omegas), axis=2)
+        jacobian = self.chain.jacobian(p, origins, omegas)[:, :, :dim]
+        columns = np.linalg.norm(jacobian, axis=2)
         chord = np.where(self.revolute, np.minimum(halves, 2.0), halves)
         first = error - chord @ self.levers
-        second = error - np.sum(columns * halves, axis=1)
-        second -= 0.5 * np.einsum("mi,ij,mj->m", halves, self.curvature, halves)
-        position_low = np.maximum(np.maximum(first, second) - ROUNDING, 0.0)
+        curvature = 0.5 * np.einsum("mi,ij,mj->m", halves, self.curvature, halves)
+        second = error - np.sum(columns * halves, axis=1) - curvature
+        # along the error's direction u: ‖e(q)‖ ≥ u·e(q) ≥ ‖e(c)‖ − Σ|u·J_i| h_i − curvature
+        direction = (p[:, :dim] - position[:dim]) / np.maximum(error, 1e-300)[:, None]
+        along = np.abs(np.einsum("mjd,md->mj", jacobian, direction))
+        third = error - np.sum(along * halves, axis=1) - curvature
+        position_low = np.maximum(np.maximum.reduce([first, second, third]) - ROUNDING, 0.0)
         merit = error * self.position_scale
         low = position_low * self.position_scale
-        share = (columns * halves + chord * self.levers) * self.position_scale
+        bending = halves * (halves @ self.curvature)  # each coordinate's part of the curvature
+        share = (along * halves + bending) * self.position_scale
         if rotation is not None and self.rotation_scale > 0.0:
             angle = _angles(rotation, frames)
             turn = np.where(self.revolute, np.minimum(halves, math.pi), 0.0)
-            rotation_low = np.maximum(angle - np.sum(turn, axis=1) - ROUNDING, 0.0)
+            axes_low, axes_share = self._axes(rotation, frames, omegas, halves)
+            rotation_low = np.maximum(angle - np.sum(turn, axis=1), axes_low) - ROUNDING
             merit = np.maximum(merit, angle * self.rotation_scale)
-            low = np.maximum(low, rotation_low * self.rotation_scale)
-            share = share + turn * self.rotation_scale
+            low = np.maximum(low, np.maximum(rotation_low, 0.0) * self.rotation_scale)
+            share = share + axes_share * self.rotation_scale
         return merit, low, share
+
+    def _axes(
+        self, target: FloatArray, frames: FloatArray, omegas: FloatArray, halves: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        r"""The tool-axis bound of the angle ``(M,)`` [rad] and its per-coordinate shares.
+
+        For a tool axis ``a``, ``v(q) = R(q) a`` has ``∂v/∂q_i = ω_i × v`` and
+        ``‖∂²v/∂q_i∂q_j‖ = ‖ω_i × (ω_j × v)‖ ≤ 1`` (revolute; prismatic: 0), so along
+        ``u = (v(c) − v*)/‖v(c) − v*‖``:
+        ``‖v(q) − v*‖ ≥ ‖v(c) − v*‖ − Σ_i |u·(ω_i × v(c))| h_i − ½ (Σ_{revolute} h_i)²``, and
+        the angle between ``R(q)`` and ``R*`` is at least ``2 arcsin(‖v(q) − v*‖/2)``
+        (rotating by ``θ`` moves a unit vector by an angle ``≤ θ``); the largest over the
+        three axes.
+        """
+        turning = np.where(self.revolute, halves, 0.0)
+        curvature = 0.5 * np.sum(turning, axis=1) ** 2
+        best = np.full(halves.shape[0], -math.inf)
+        share = np.zeros(halves.shape)
+        for axis in range(3):
+            v = frames[:, :, axis]
+            gap = v - target[None, :, axis]
+            norm = np.linalg.norm(gap, axis=1)
+            direction = gap / np.maximum(norm, 1e-300)[:, None]
+            moves = np.cross(omegas, v[:, None, :])  # (M, m, 3)
+            along = np.abs(np.einsum("mjd,md->mj", moves, direction)) * self.revolute
+            chord = norm - np.sum(along * halves, axis=1) - curvature
+            better = chord > best
+            best = np.where(better, chord, best)
+            part = along * halves + turning * np.sum(turning, axis=1)[:, None]
+            share = np.where(better[:, None], part, share)
+        return 2.0 * np.arcsin(np.clip(0.5 * best, 0.0, 1.0)), share
 
     def bound(self, sample: int, budget: int, goal: float = 1.0) -> SampleBound:
         """Lower bound of ``min_{B_k} m_k`` [tolerances], refined until it decides ``goal``.
@@ -171,11 +214,11 @@ class SampleSearch:
             alive = low < found  # a box above the best centre cannot hold the minimum
             centres, halves, low, share = centres[alive], halves[alive], low[alive], share[alive]
             if low.size == 0:  # every box's enclosure is at or above the best centre
-                return SampleBound(sample, _inward(found), found, boxes)
-        return SampleBound(sample, _inward(min(float(np.min(low)), found)), found, boxes)
+                return SampleBound(sample, inward(found), found, boxes)
+        return SampleBound(sample, inward(min(float(np.min(low)), found)), found, boxes)
 
 
-def _inward(value: float) -> float:
+def inward(value: float) -> float:
     """``value`` less ``ROUNDING`` (relative and absolute), at least 0."""
     return max(value * (1.0 - ROUNDING) - ROUNDING, 0.0)
 

@@ -32,7 +32,8 @@ limit:
    limits beats it); **lower** = :func:`~otmm_qp.reference.bound.lower_bound`, raised on an
    undecided task by the per-sample branch and bound
    (:class:`~otmm_qp.reference.sample_bound.SampleSearch`) on its first ``SEARCH_SAMPLES``
-   samples the best path misses, ``SEARCH_BOXES`` boxes each.
+   samples the best path misses, ``SEARCH_BOXES`` boxes each, then by the speed-coupled
+   forward propagation (:func:`~otmm_qp.reference.coupled_bound.coupled_certificate`).
 5. **Position optimum** (the one reference of claims about *position* error:
    oracle-relative error, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
@@ -56,6 +57,7 @@ import numpy as np
 from otmm_qp.reference.bound import LowerBound, lower_bound
 from otmm_qp.reference.chain import UnsupportedChain
 from otmm_qp.reference.conic import ConicEpigraph
+from otmm_qp.reference.coupled_bound import coupled_certificate
 from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
@@ -211,7 +213,7 @@ def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) ->
         bound = bound.raised(int(sample), found.merit, "search")
         if bound.value > 1.0:
             break
-    return bound
+    return bound if bound.value > 1.0 else coupled_certificate(problem, bound)
 
 
 def _label(upper: float, lower: float) -> ReferenceStatus:

@@ -59,6 +59,13 @@ class Targets(abc.ABC):
             NonFiniteState: A target is NaN or inf.
         """
 
+    @abc.abstractmethod
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r"""The window's task speed :math:`\bar v` [weighted task units/s] at time ``t`` [s].
+
+        The rule of ``peak_scale: arm`` (:mod:`.parameters`); finite and ≥ 0.
+        """
+
 
 class TrajectoryTargets(Targets):
     """The desired path ``x_d(t + τ_i)`` at the knot offsets (preview).
@@ -94,6 +101,13 @@ class TrajectoryTargets(Targets):
             )
         return out
 
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r""":math:`\bar v = \|W\,e(x_d(t + H), x_d(t))\| / H`, the window's chord speed."""
+        horizon = self.taus[-1]
+        now, ahead = self.trajectory.positions([t, t + horizon])
+        value = float(np.linalg.norm(state.weight * robot.task_error(ahead, now))) / horizon
+        return value if math.isfinite(value) else 0.0  # a NaN path is refused by residuals
+
 
 class HeldCommandTargets(Targets):
     r"""The present command held over the horizon (causal): :math:`\tau_i\dot x_w` from ``x_0``.
@@ -122,3 +136,8 @@ class HeldCommandTargets(Targets):
         for i, x in enumerate(knots, start):
             out[i] -= weight * error(x, x0)
         return out
+
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r""":math:`\bar v = \|\dot x_w\|`, the held command's speed."""
+        value = float(np.linalg.norm(xdot))
+        return value if math.isfinite(value) else 0.0

@@ -229,6 +229,7 @@ class PreviewBackend(BoxQpBackend):
         self._working: ActiveSet | None = None
         self._peak = 0.0
         self._peak_jump = 0.0
+        self._task_speed = 0.0
         if hasattr(self, "_plan"):
             self._plan[:] = 0.0
 
@@ -298,8 +299,10 @@ class PreviewBackend(BoxQpBackend):
         yield
         room = self._theta_limits - theta
         scale = None
-        if self.peak_scale == "arm":  # ω = ω̂ v̄²/q̇_lim (.parameters)
-            scale = targets.speed(self.robot, state, xdot, t) ** 2 / self._slowest_joint
+        if self.peak_scale == "arm":  # ω = ω̂ v̄²/q̇_lim, v̄ the episode's fastest window so far
+            speed = targets.speed(self.robot, state, xdot, t)
+            self._task_speed = max(self._task_speed, speed)
+            scale = self._task_speed**2 / self._slowest_joint
         problem = self._qp.build(
             self._jacobians, self._residuals, nominal, qdot_prev, bounds,
             self._speed, room, self._peak, self._peak_jump, scale,

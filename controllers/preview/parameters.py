@@ -16,16 +16,18 @@ The peak weights' rule (``peak_scale``):
 
   .. math:: \omega = \hat\omega\,\frac{\bar v^2}{\dot q_{lim}},\qquad
             \omega_a = \hat\omega_a\,\frac{\bar v^2}{\dot q_{lim}},\qquad
-            \bar v = \frac{\|W\,e(x_d(t + H),\ x_d(t))\|}{H}
+            \bar v = \max_{t' \le t}\frac{\|W\,e(x_d(t' + H),\ x_d(t'))\|}{H}
 
   with :math:`\dot q_{lim}` [rad/s] the smallest of the arm's joint speed limits (its model's,
-  capped by a ``velocity`` limit's ``max_speed``) and :math:`\bar v` [task units/s] the
-  weighted desired path's chord speed over the preview window (the causal backend: the held
-  command's, :math:`\|\dot x_w\|`). Reading: reaching the arm's speed limit costs ω̂ times the
-  task term of lagging the window's motion by one step (the task term is in units of one
-  step's velocity, :mod:`.formulation`), so the weights follow the task's speed (a motion 1.4×
-  faster weighs its peaks 1.96× more) and the arm's limits, and one ω̂ serves both arms and
-  both speeds.
+  capped by a ``velocity`` limit's ``max_speed``; 1 rad/s when none is finite) and
+  :math:`\bar v` [weighted task units/s] the fastest chord speed of the preview window seen so
+  far in the episode (the causal backend: of the held command, :math:`\|\dot x_w\|`). Reading:
+  reaching the arm's speed limit costs ω̂ times the task term of lagging the episode's fastest
+  motion by one step (the task term is in units of one step's velocity, :mod:`.formulation`),
+  so the weights follow the task's speed (a motion 1.4× faster weighs its peaks 1.96× more)
+  and the arm's limits, and one ω̂ serves both arms and both speeds. The running maximum, like
+  the epigraphs' floors, never lowers a weight when the path slows down (a weight that fell to
+  0 at the end of a motion would let the last steps jump).
 """
 
 from __future__ import annotations

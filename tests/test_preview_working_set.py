@@ -139,11 +139,12 @@ def test_working_set_must_be_a_boolean() -> None:
 
 @pytest.mark.parametrize("arm", ["ur5", "panda"])
 def test_the_deployable_studies_judge_the_benchs_row_on_the_crossing_tasks(arm: str) -> None:
-    """The tuning studies (seed 2026): the crossing study's tasks (same seeds: the same paths,
-    each generator draws its duration from its own stream) with two preview rows, the fixed
-    weights' ``preview-minmax-k8`` and the bench's deployable row (same parameters); the
-    held-out studies (seed 3737, ≥ 40 near-singular passes): ONE preview row, the deployable
-    one — each at the shipped speed, and faster with durations 1.0-1.8 s instead of 1.5-2.5 s."""
+    """The seed-2026 studies: the crossing study's tasks (same seeds: the same paths, each
+    generator draws its duration from its own stream) with the fixed weights'
+    ``preview-minmax-k8`` (the bench's row of that name); the held-out studies (seed 3737,
+    ≥ 40 near-singular passes): ONE preview row, the bench's deployable one (same parameters),
+    the same field rows — each at the shipped speed, and faster with durations 1.0-1.8 s
+    instead of 1.5-2.5 s."""
     import yaml
 
     from otmm_qp.bench.pipelines import DEPLOYABLE, K8, PREVIEWS
@@ -164,12 +165,11 @@ def test_the_deployable_studies_judge_the_benchs_row_on_the_crossing_tasks(arm: 
         path = root / f"preview_deployable_{speed}{arm}.yaml"
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
         previews = [row for row in data["controllers"] if row["name"].startswith("preview")]
-        assert [row["name"] for row in previews] == ["preview-minmax-k8", "preview-k8-arm"]
+        assert [row["name"] for row in previews] == ["preview-minmax-k8"]
         assert backend_of(previews[0]) == bench_params(K8)
-        assert backend_of(previews[1]) == bench_params(bench)
         assert {tuple(g["duration"]) for g in data["generators"]} == durations
         plan = plan_study(load_study(path), path.name)
-        assert len(plan.episodes) == len(crossing.episodes) // 10 * 11
+        assert len(plan.episodes) == len(crossing.episodes)
         assert {(e.generator, e.task_index, e.seed) for e in plan.episodes} == {
             (e.generator, e.task_index, e.seed) for e in crossing.episodes
         }

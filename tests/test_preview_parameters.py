@@ -155,3 +155,28 @@ def test_the_arm_rules_speed_never_falls_within_an_episode_and_restarts_with_it(
     backend.reset()
     first = backend.solve(state, np.zeros(2), np.zeros(3))
     assert float(first.details.problem.q[-1]) == weights[0]
+
+
+def test_the_window_speed_is_the_same_with_or_without_the_steps_residuals() -> None:
+    """``speed`` reuses x_d(t) and x_d(t + H) of the residuals at the same t (one vectorised
+    call), else evaluates both ends itself: the same number either way."""
+    from otmm_qp_controllers.preview.targets import TrajectoryTargets
+
+    robot = PlanarArm([1.0, 0.8, 0.5], velocity_limits=[2.0] * 3)
+    q0 = np.array([0.3, 0.9, 0.6])
+    start = robot.forward(q0)
+    trajectory = CircleTrajectory(
+        start, centre=start - [0.3, 0.0], radius=0.3, period=1.5, profile="quintic"
+    )
+    taus = np.array([0.02, 0.04, 0.2, 0.5])
+    state = KinematicState.compute(robot, q0)
+    alone = TrajectoryTargets(trajectory, taus).speed(robot, state, np.zeros(2), 0.3)
+    targets = TrajectoryTargets(trajectory, taus)
+    out = np.empty((4, 2))
+    targets.residuals(robot, state, np.zeros(2), 0.3, [state.x] * 2, out, 0)
+    targets.residuals(robot, state, np.zeros(2), 0.3, [state.x] * 2, out, 2)
+    assert alone > 0.0
+    assert targets.speed(robot, state, np.zeros(2), 0.3) == pytest.approx(alone, rel=1e-12)
+    other = TrajectoryTargets(trajectory, taus).speed(robot, state, np.zeros(2), 1.3)
+    assert other != pytest.approx(alone, rel=1e-6)  # the cache answers its own t only
+    assert targets.speed(robot, state, np.zeros(2), 1.3) == other

@@ -1,16 +1,17 @@
 """Per-step CPU time of the preview pipelines beside pink (daqp), immune to other processes.
 
-Run: ``python benchmarks/bench_preview_cpu.py [--steps N] [--rounds R]``. The Panda pipelines of
-``otmm-qp bench`` (:data:`otmm_qp.bench.pipelines.PREVIEWS` — every preview row a study or the
-README names — and ``pink (daqp)``) replay the same recorded states, each in order (one untimed
-pass, then ``R`` rounds), timed with ``time.thread_time`` — the CPU time of this thread, so a
-step preempted by another process is not charged for the wait — and, beside it, with
-``time.perf_counter`` (wall clock, which a loaded machine inflates). On a shared machine the
-wall-clock p99 measures the scheduler (a 4 ms time slice lands in 1–10 % of steps); the CPU p99
-is the step's own worst case. Prints a Markdown table: CPU median, p99 and max [µs], wall
-median and p99 [µs], and the CPU medians' and p99s' ratios to pink (daqp) of the same run;
-then whether the deployable row (:data:`~otmm_qp.bench.pipelines.DEPLOYABLE`) meets its budget,
-CPU median ≤ 1 ms and p99 ≤ 2 ms.
+Run: ``python benchmarks/bench_preview_cpu.py [--steps N] [--rounds R] [--deployable]``
+(``--deployable``: only pink (daqp) and the deployable row are built and timed). The Panda
+pipelines of ``otmm-qp bench`` (:data:`otmm_qp.bench.pipelines.PREVIEWS` — every preview row
+a study or the README names — and ``pink (daqp)``) replay the same recorded states, each in
+order (one untimed pass, then ``R`` rounds), timed with ``time.thread_time`` — the CPU time of
+this thread, so a step preempted by another process is not charged for the wait — and, beside
+it, with ``time.perf_counter`` (wall clock, which a loaded machine inflates). On a shared
+machine the wall-clock p99 measures the scheduler (a 4 ms time slice lands in 1–10 % of
+steps); the CPU p99 is the step's own worst case. Prints a Markdown table: CPU median, p99
+and max [µs], wall median and p99 [µs], and the CPU medians' and p99s' ratios to pink (daqp)
+of the same run; then whether the deployable row
+(:data:`~otmm_qp.bench.pipelines.DEPLOYABLE`) meets its budget, CPU median ≤ 1 ms and p99 ≤ 2 ms.
 """
 
 from __future__ import annotations
@@ -32,10 +33,16 @@ from otmm_qp.bench.scenarios import panda_scenario  # noqa: E402
 BUDGET = (1000.0, 2000.0)
 
 
-def step_times(steps: int, rounds: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """CPU and wall time [µs] of every step, each shape ``(rounds·steps,)``, per pipeline."""
+def step_times(
+    steps: int, rounds: int, deployable: bool = False
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """CPU and wall time [µs] of every step, each shape ``(rounds·steps,)``, per pipeline.
+
+    ``deployable``: pink (daqp) and :data:`DEPLOYABLE` only.
+    """
     scenario = panda_scenario(steps)
-    wanted = [REFERENCE, *(label for label, _, _ in PREVIEWS)]
+    previews = [DEPLOYABLE] if deployable else [label for label, _, _ in PREVIEWS]
+    wanted = [REFERENCE, *previews]
     built, _ = build_steps(scenario, True, only=wanted)
     cpu, wall = time.thread_time, time.perf_counter
     out = {}
@@ -58,8 +65,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--steps", type=int, default=300, help="replayed states (default 300)")
     parser.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    parser.add_argument(
+        "--deployable", action="store_true", help="time pink (daqp) and the deployable row only"
+    )
     args = parser.parse_args(argv)
-    times = step_times(args.steps, args.rounds)
+    times = step_times(args.steps, args.rounds, args.deployable)
     reference = times[REFERENCE][0] if REFERENCE in times else None
     print(
         "| pipeline | CPU median µs | CPU p99 µs | CPU max µs | wall median µs | wall p99 µs "

@@ -37,6 +37,7 @@ _PHASES: tuple[tuple[Any, str, str], ...] = (
     (preview_backend.PreviewBackend, "begin_step", "box (begin_step)"),
     (preview_backend.PreviewBackend, "_linearise", "knots' FK + Jacobians"),
     (preview_backend.TrajectoryTargets, "residuals", "targets (x_d, task error)"),
+    (preview_backend.TrajectoryTargets, "speed", "window speed (peak_scale: arm)"),
     (formulation.PreviewProblem, "build", "QP assembly (Hessian, gradient)"),
     (formulation.PreviewProblem, "with_active_bounds", "fast-path candidates"),
     (formulation.PreviewProblem, "with_active_set", "warm active set (bounds and rows)"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import collections
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -138,33 +139,52 @@ def test_working_set_must_be_a_boolean() -> None:
 
 @pytest.mark.parametrize("arm", ["ur5", "panda"])
 def test_the_deployable_studies_judge_the_benchs_row_on_the_crossing_tasks(arm: str) -> None:
-    """ONE preview row per study, the bench's deployable row (same parameters), on the crossing
-    study's tasks (same seeds: the same paths, each generator draws its duration from its own
-    stream) — at the shipped speed, and faster with durations 1.0-1.8 s instead of 1.5-2.5 s."""
+    """The seed-2026 studies: the crossing study's tasks (same seeds: the same paths, each
+    generator draws its duration from its own stream) with the fixed weights'
+    ``preview-minmax-k8`` (the bench's row of that name); the held-out studies (seed 3737,
+    ≥ 40 near-singular passes): ONE preview row, the bench's deployable one (same parameters),
+    the same field rows — each at the shipped speed, and faster with durations 1.0-1.8 s
+    instead of 1.5-2.5 s."""
     import yaml
 
-    from otmm_qp.bench.pipelines import DEPLOYABLE, PREVIEWS
+    from otmm_qp.bench.pipelines import DEPLOYABLE, K8, PREVIEWS
     from otmm_qp.studies.spec import load_study, plan_study
 
     root = Path(__file__).parent.parent / "configs" / "studies"
     crossing = plan_study(load_study(root / f"preview_crossings_{arm}.yaml"), "crossing")
     bench = next(params for label, _, params in PREVIEWS if label == DEPLOYABLE)
+
+    def backend_of(row: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in row["backend"].items() if k not in ("type", "solver")}
+
+    def bench_params(params: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in params.items() if k != "infeasible_policy"}
+
     for speed in ("", "fast_"):
+        durations = {(1.5, 2.5)} if not speed else {(1.0, 1.8)}
         path = root / f"preview_deployable_{speed}{arm}.yaml"
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
         previews = [row for row in data["controllers"] if row["name"].startswith("preview")]
         assert [row["name"] for row in previews] == ["preview-minmax-k8"]
-        backend = {k: v for k, v in previews[0]["backend"].items() if k != "type"}
-        assert backend == {k: v for k, v in bench.items() if k != "infeasible_policy"} | {
-            "solver": "daqp"
-        }
-        durations = {tuple(g["duration"]) for g in data["generators"]}
-        assert durations == ({(1.5, 2.5)} if not speed else {(1.0, 1.8)})
+        assert backend_of(previews[0]) == bench_params(K8)
+        assert {tuple(g["duration"]) for g in data["generators"]} == durations
         plan = plan_study(load_study(path), path.name)
-        assert len(plan.episodes) == len(crossing.episodes) == 84 * 10
+        assert len(plan.episodes) == len(crossing.episodes)
         assert {(e.generator, e.task_index, e.seed) for e in plan.episodes} == {
             (e.generator, e.task_index, e.seed) for e in crossing.episodes
         }
+        path = root / f"preview_heldout_{speed}{arm}.yaml"
+        held = yaml.safe_load(path.read_text(encoding="utf-8"))
+        previews = [row for row in held["controllers"] if row["name"].startswith("preview")]
+        assert [backend_of(row) for row in previews] == [bench_params(bench)]
+        others = [row for row in data["controllers"] if not row["name"].startswith("preview")]
+        assert [row for row in held["controllers"] if row not in previews] == others
+        assert held["seed"] != data["seed"]
+        assert {tuple(g["duration"]) for g in held["generators"]} == durations
+        near = [g for g in held["generators"] if g["type"] == "near_singular"]
+        assert sum(g["count"] for g in near) >= 40
+        tasks = {(e.generator, e.seed) for e in plan_study(load_study(path), path.name).episodes}
+        assert not tasks & {(e.generator, e.seed) for e in plan.episodes}  # new tasks
 
 
 def test_the_working_set_loop_ends_when_the_solver_is_only_nearly_exact() -> None:

@@ -53,7 +53,22 @@ def test_bench_preview_cpu_prints_every_preview_row(capsys: pytest.CaptureFixtur
         median, p99, worst, wall_median, wall_p99 = (float(c) for c in line.split("|")[2:7])
         assert 0 < median <= p99 <= worst
         assert 0 < wall_median <= wall_p99
-    assert "preview-minmax-k8 (deployable): CPU median" in out
+    from otmm_qp.bench.pipelines import DEPLOYABLE
+
+    assert f"{DEPLOYABLE}: CPU median" in out
+
+
+def test_bench_preview_cpu_deployable_times_pink_and_the_deployable_row_only(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from otmm_qp.bench.pipelines import DEPLOYABLE, REFERENCE
+
+    module = _script(SCRIPT.with_name("bench_preview_cpu.py"))
+    assert module.main(["--deployable", "--steps", "6", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "µs" not in line]
+    assert [row.split("|")[1].strip() for row in rows] == [REFERENCE, DEPLOYABLE]
+    assert f"{DEPLOYABLE}: CPU median" in out
 
 
 def test_profile_preview_charges_every_phase_once(capsys: pytest.CaptureFixture[str]) -> None:

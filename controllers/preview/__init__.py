@@ -6,6 +6,8 @@ One concept, one idea per file:
   ones: move blocking) and the shift of a plan into the next step's nominal;
 * :mod:`.formulation` — :class:`PreviewProblem`, the QP (task error at every knot linearised
   along the nominal, smoothness on second differences, hard limits) written in place;
+* :mod:`.parameters` — :class:`PreviewParameters`, every parameter in one frozen, checked
+  object, and the rule of the peak weights (``peak_scale``);
 * :mod:`.targets` — what each knot misses: the desired path (preview) or the held command
   (causal);
 * :mod:`.backend` — :class:`PreviewBackend` (entry point ``preview``) and
@@ -17,6 +19,7 @@ One concept, one idea per file:
 from .backend import CausalPreviewBackend, PreviewBackend, PreviewStep
 from .formulation import PreviewProblem, PreviewWeights
 from .knots import KnotGrid
+from .parameters import PreviewParameters
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
 from .two_rate import TwoRatePreviewBackend
 
@@ -25,6 +28,7 @@ __all__ = [
     "HeldCommandTargets",
     "KnotGrid",
     "PreviewBackend",
+    "PreviewParameters",
     "PreviewProblem",
     "PreviewStep",
     "PreviewWeights",

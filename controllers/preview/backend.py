@@ -15,42 +15,40 @@ they know.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Generator, Sequence
-from numbers import Integral, Real
-from typing import ClassVar, Literal, NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
 from otmm_qp.backends.backend import BackendOutput
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.limits import AccelerationLimit, LimitSpec, PositionLimit, VelocityLimit, make_limits
-from otmm_qp.limits.options import LIMITS
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.state import KinematicState
 from otmm_qp.status import Status
 from otmm_qp.trajectories.preview import check_preview
 from otmm_qp.trajectories.trajectory import Trajectory
-from otmm_qp.validation import Boolean, Constraints, Interval, OneOf, check_params
+from otmm_qp.validation import Constraints
 
-from ..qp.box_backend import SOLVER, SOLVER_TOL, BoxQpBackend
+from ..qp.box_backend import SOLVER_TOL, BoxQpBackend
 from ..qp.formulation import clip_into_box
 from ..qp.solvers import QpProblem, Solution
 from .formulation import BoolArray, PreviewProblem, PreviewWeights
-from .knots import BYTES_PER_ENTRY, MAX_KNOTS, MAX_QP_BYTES, KnotGrid
+from .knots import KnotGrid
+from .parameters import (
+    POLICIES,
+    PREVIEW_CONSTRAINTS,
+    InfeasiblePolicy,
+    PeakScale,
+    PreviewParameters,
+)
 from .targets import HeldCommandTargets, Targets, TrajectoryTargets
 
 __all__ = ["KNOTS_PER_SLICE", "CausalPreviewBackend", "PreviewBackend", "PreviewStep", "run_slices"]
 
 #: Knots whose kinematics one slice of :meth:`PreviewBackend.plan_slices` computes.
 KNOTS_PER_SLICE = 8
-
-InfeasiblePolicy = Literal["raise", "hold", "dls"]
-_WEIGHT = Interval(Real, 0, None, closed="left")
-#: What bounds ``knots`` and ``fine_steps`` (the QP's memory grows as their square).
-_KNOTS = (
-    f"segments; the QP's dense matrices take ~{BYTES_PER_ENTRY}·(K·n)² bytes on n joints, at "
-    f"most {MAX_QP_BYTES // 2**20} MiB"
-)
 
 
 class PreviewStep(NamedTuple):
@@ -89,6 +87,10 @@ class PreviewBackend(BoxQpBackend):
             (an epigraph variable and ``2·K·nv`` rows; 0: none).
         peak_jump: ω_a ≥ 0, weight of the plan's largest velocity change per step beyond the
             episode's executed one (an epigraph variable and ``2·K·nv`` rows; 0: none).
+        peak_scale: ``absolute`` (``peak``, ``peak_jump`` are ω, ω_a) or ``arm`` (they are
+            dimensionless and the weights follow the arm's speed limit and the window's task
+            speed each step: :math:`\omega = \hat\omega\,\bar v^2/\dot q_{lim}`,
+            :mod:`.parameters`).
         solver: ``daqp``, ``proxsuite``, ``osqp`` (persistent sessions, warm started) or
             another installed qpsolvers backend.
         limits: The project's limits (:mod:`otmm_qp.limits`): the first segment keeps their
@@ -114,30 +116,18 @@ class PreviewBackend(BoxQpBackend):
             does not fit ``dt`` (at :meth:`bind`: ``H < dt``, a ``coarse_step`` that is not
             a multiple of ``dt`` or does not divide the rest, more knots than the cap).
         PreviewUnavailable: At :meth:`attach`, a trajectory known less than ``H`` ahead.
+
+    Every parameter is keyword-only and lands, checked, in one frozen
+    :class:`~.parameters.PreviewParameters` (:attr:`parameters`).
     """
 
     name = "preview"
-    policies = ("raise", "hold", "dls")
-    parameter_constraints: ClassVar[Constraints] = {
-        "horizon": Interval(Real, 0, None, closed="neither", unit="s"),
-        "knots": Interval(Integral, 1, MAX_KNOTS, unit=_KNOTS),
-        "fine_steps": Interval(Integral, 1, MAX_KNOTS, unit=_KNOTS),
-        "coarse_step": [Interval(Real, 0, None, closed="neither", unit="s"), None],
-        "regularization": Interval(Real, 0, None, closed="neither"),
-        "smoothness": _WEIGHT,
-        "jump": _WEIGHT,
-        "trust_region": _WEIGHT,
-        "peak": _WEIGHT,
-        "peak_jump": _WEIGHT,
-        "solver": SOLVER,
-        "limits": [LIMITS, None],
-        "infeasible_policy": OneOf(*policies),
-        "fast_path": Boolean(),
-        "working_set": Boolean(),
-    }
+    policies = POLICIES
+    parameter_constraints: ClassVar[Constraints] = PREVIEW_CONSTRAINTS
 
     def __init__(
         self,
+        *,
         horizon: float = 1.0,
         knots: int = 16,
         fine_steps: int = 4,
@@ -153,18 +143,24 @@ class PreviewBackend(BoxQpBackend):
         peak: float = 0.0,
         peak_jump: float = 0.0,
         working_set: bool = False,
+        peak_scale: PeakScale = "absolute",
     ) -> None:
-        check_params(self, locals())
-        super().__init__(solver, make_limits(limits), infeasible_policy)
-        self.fast_path = bool(fast_path)
-        self.working_set = bool(working_set)
-        self.horizon = float(horizon)
-        self.knots = int(knots)
-        self.fine_steps = int(fine_steps)
-        self.coarse_step = None if coarse_step is None else float(coarse_step)
+        self._configure(PreviewParameters.pick(locals()))
+
+    def _configure(self, parameters: PreviewParameters) -> None:
+        """Keep the checked parameters (:attr:`parameters`); set up what they fix before bind."""
+        p = self.parameters = parameters
+        super().__init__(p.solver, make_limits(p.limits), p.infeasible_policy)
+        self.fast_path = bool(p.fast_path)
+        self.working_set = bool(p.working_set)
+        self.horizon = float(p.horizon)
+        self.knots = int(p.knots)
+        self.fine_steps = int(p.fine_steps)
+        self.coarse_step = None if p.coarse_step is None else float(p.coarse_step)
+        self.peak_scale = p.peak_scale
         self.weights = PreviewWeights(
-            float(regularization), float(smoothness), float(jump), float(trust_region),
-            float(peak), float(peak_jump),
+            float(p.regularization), float(p.smoothness), float(p.jump), float(p.trust_region),
+            float(p.peak), float(p.peak_jump),
         )  # fmt: skip
         self._damping = float(np.sqrt(self.weights.regularization))
         self._targets: Targets | None = None
@@ -184,6 +180,7 @@ class PreviewBackend(BoxQpBackend):
         self.grid = KnotGrid.layout(self.horizon, dt, self.fine_steps, self.knots, self.coarse_step)
         KnotGrid.check_memory(self.grid.count, robot.nv)  # before anything (K·n)² is allocated
         self._shift = self.grid.shift_matrix()
+        self._taus, self._steps = self.grid.taus, self.grid.steps[:, None]
         nv, count = robot.nv, self.grid.count
         boxes = self.limits.boxes
         position = any(isinstance(limit, PositionLimit) for limit in boxes)
@@ -204,6 +201,9 @@ class PreviewBackend(BoxQpBackend):
             if isinstance(limit, VelocityLimit):
                 speed = np.minimum(speed, limit.speed)
         self._speed = speed
+        # q̇_lim of the ``arm`` peak weights: the arm's slowest joint (its model, capped).
+        slowest = float(np.min(np.minimum(np.asarray(robot.velocity_limits, dtype=float), speed)))
+        self._slowest_joint = slowest if math.isfinite(slowest) and slowest > 0.0 else 1.0
         self._targets = self._make_targets(self._trajectory)
 
     def attach(self, trajectory: Trajectory) -> None:
@@ -229,6 +229,7 @@ class PreviewBackend(BoxQpBackend):
         self._working: ActiveSet | None = None
         self._peak = 0.0
         self._peak_jump = 0.0
+        self._task_speed = 0.0
         if hasattr(self, "_plan"):
             self._plan[:] = 0.0
 
@@ -282,14 +283,14 @@ class PreviewBackend(BoxQpBackend):
             )
         theta, empty = self.begin_step(state, qdot_prev)
         plan = self._shift @ self._plan  # the nominal: the last plan advanced
-        taus = self.grid.taus
+        taus = self._taus
         if empty:
             detail = self.box.conflict(self.robot.joint_names)
             qdot, status = self.fallback(detail, (None, None), True, plan[0])
             self._plan = plan
             return self._output(qdot, status, None, None, plan, taus)
         bounds = self.box.bounds
-        nominal = np.cumsum(self.grid.steps[:, None] * plan, axis=0)  # d̄_i, (K, nv)
+        nominal = np.add.accumulate(self._steps * plan)  # d̄_i, (K, nv): cumsum over knots
         for start in range(0, self.grid.count, KNOTS_PER_SLICE):
             yield
             knots = self._linearise(state, theta, nominal, start)
@@ -297,9 +298,14 @@ class PreviewBackend(BoxQpBackend):
             targets.residuals(self.robot, state, xdot, t, knots, self._residuals, start)
         yield
         room = self._theta_limits - theta
+        scale = None
+        if self.peak_scale == "arm":  # ω = ω̂ v̄²/q̇_lim, v̄ the episode's fastest window so far
+            speed = targets.speed(self.robot, state, xdot, t)
+            self._task_speed = max(self._task_speed, speed)
+            scale = self._task_speed**2 / self._slowest_joint
         problem = self._qp.build(
             self._jacobians, self._residuals, nominal, qdot_prev, bounds,
-            self._speed, room, self._peak, self._peak_jump,
+            self._speed, room, self._peak, self._peak_jump, scale,
         )  # fmt: skip
         if self.working_set:
             floors = (self._peak, self._peak_jump)[: problem.q.shape[0] - plan.size]
@@ -434,6 +440,8 @@ class PreviewBackend(BoxQpBackend):
         the state's Jacobian: no kinematics call.
         """
         robot, weight = self.robot, state.weight
+        kinematics, configuration = robot.kinematics, robot.configuration
+        euclidean = self._euclidean  # q = θ: no configuration call (as begin_step reads θ)
         knots: list[FloatArray] = []
         for i in range(start, min(start + KNOTS_PER_SLICE, self.grid.count)):
             offset = nominal[i]
@@ -441,7 +449,8 @@ class PreviewBackend(BoxQpBackend):
                 knots.append(state.x)
                 self._jacobians[i] = state.task_jacobian
                 continue
-            x, jacobian = robot.kinematics(robot.configuration(theta + offset))
+            point = theta + offset
+            x, jacobian = kinematics(point if euclidean else configuration(point))
             knots.append(x)
             np.multiply(weight[:, None], jacobian, out=self._jacobians[i])
         return knots

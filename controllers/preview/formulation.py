@@ -256,6 +256,7 @@ class PreviewProblem:
         position_room: FloatArray,
         peak_floor: float = 0.0,
         jump_floor: float = 0.0,
+        peak_scale: float | None = None,
     ) -> QpProblem:
         r"""Write this step's QP into :attr:`problem` and return it.
 
@@ -270,6 +271,10 @@ class PreviewProblem:
             peak_floor: ŝ [rad/s], the peak joint speed already executed (peak term only).
             jump_floor: â [rad/s], the largest one-step velocity change already executed
                 (peak-jump term only).
+            peak_scale: None: the weights ω, ω_a as given; else their factor this step
+                [task units² / s² / (rad/s)], :math:`\bar v^2/\dot q_{lim}` of the ``arm``
+                rule (:mod:`.parameters`): the costs are ``peak·scale`` and
+                ``peak_jump·scale``.
         """
         problem, count, nv = self.problem, self.grid.count, self.nv
         h, c = self.grid.steps, self._task_weight
@@ -283,8 +288,8 @@ class PreviewProblem:
         pull = np.matmul(transposed, residuals[:, :, None])[:, :, 0]
         pull *= c[:, None]
         pull += np.matmul(gram, nominal[:, :, None])[:, :, 0]
-        suffix = np.cumsum(gram[::-1], axis=0)[::-1]
-        pull_suffix = np.cumsum(pull[::-1], axis=0)[::-1]
+        suffix = np.add.accumulate(gram[::-1])[::-1]  # cumsum over knots, no wrapper
+        pull_suffix = np.add.accumulate(pull[::-1])[::-1]
         blocks = self._blocks
         np.take(suffix, self._index, axis=0, out=blocks)
         blocks *= self._hh
@@ -293,6 +298,12 @@ class PreviewProblem:
         np.add(hessian, self._constant, out=hessian)
         if problem.q.shape[0] > plan:
             problem.P[:plan, :plan] = hessian
+        if peak_scale is not None:
+            weights = self.weights
+            if self.peaked:
+                problem.q[self._peak_index] = weights.peak * peak_scale
+            if self.jump_peaked:
+                problem.q[self._jump_index] = weights.peak_jump * peak_scale
         if self.peaked:
             problem.lb[self._peak_index] = min(peak_floor, BIG)
         if self.jump_peaked:
@@ -304,14 +315,14 @@ class PreviewProblem:
         np.multiply(pull_suffix, -h[:, None], out=linear)
         linear[0] -= self._first_jump * qdot_prev
         lb, ub = problem.lb[:plan].reshape(count, nv), problem.ub[:plan].reshape(count, nv)
-        np.clip(first_box[0], -BIG, BIG, out=lb[0])
-        np.clip(first_box[1], -BIG, BIG, out=ub[0])
+        np.minimum(np.maximum(first_box[0], -BIG, out=lb[0]), BIG, out=lb[0])  # clip, no wrapper
+        np.minimum(np.maximum(first_box[1], -BIG, out=ub[0]), BIG, out=ub[0])
         limit = np.minimum(speed, BIG)
         lb[1:] = -limit
         ub[1:] = limit
         rows = self._position_rows
         if rows.stop:
-            room = np.clip(position_room, -BIG, BIG)
+            room = np.minimum(np.maximum(position_room, -BIG), BIG)
             problem.l[rows].reshape(count - 1, nv)[:] = room[0]  # a view: every knot's rows
             problem.u[rows].reshape(count - 1, nv)[:] = room[1]
         return problem

@@ -59,6 +59,13 @@ class Targets(abc.ABC):
             NonFiniteState: A target is NaN or inf.
         """
 
+    @abc.abstractmethod
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r"""The window's task speed :math:`\bar v` [weighted task units/s] at time ``t`` [s].
+
+        The rule of ``peak_scale: arm`` (:mod:`.parameters`); finite and ≥ 0.
+        """
+
 
 class TrajectoryTargets(Targets):
     """The desired path ``x_d(t + τ_i)`` at the knot offsets (preview).
@@ -71,6 +78,8 @@ class TrajectoryTargets(Targets):
     def __init__(self, trajectory: Trajectory, taus: FloatArray) -> None:
         self.trajectory = trajectory
         self.taus = [float(tau) for tau in taus]
+        # x_d(t) and x_d(t + H) of the last residuals at time t (for speed: no second call).
+        self._ends: tuple[float, FloatArray | None, FloatArray | None] = (math.nan, None, None)
 
     def residuals(
         self,
@@ -85,7 +94,14 @@ class TrajectoryTargets(Targets):
         r""":math:`\bar r_i = W\,e(x_d(t + \tau_i), x(\bar\theta_i))`."""
         error, weight = robot.task_error, state.weight
         stop = start + len(knots)
-        desired = self.trajectory.positions([t + tau for tau in self.taus[start:stop]])
+        times = [t + tau for tau in self.taus[start:stop]]
+        if start == 0:  # x_d(t) too, in the same vectorised call (speed's chord start)
+            now, *desired = self.trajectory.positions([t, *times])
+            self._ends = (t, now, None)
+        else:
+            desired = self.trajectory.positions(times)
+        if stop == len(self.taus) and self._ends[0] == t:
+            self._ends = (t, self._ends[1], desired[-1])
         for i, target, x in zip(range(start, stop), desired, knots, strict=True):
             np.multiply(weight, error(target, x), out=out[i])
         if not math.isfinite(float(out[start:stop].sum())):
@@ -93,6 +109,15 @@ class TrajectoryTargets(Targets):
                 "trajectory", f"x_d is NaN or inf within the preview window after t = {t:g} s"
             )
         return out
+
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r""":math:`\bar v = \|W\,e(x_d(t + H), x_d(t))\| / H`, the window's chord speed."""
+        horizon = self.taus[-1]
+        when, now, ahead = self._ends
+        if when != t or now is None or ahead is None:  # no residuals at t: evaluate both ends
+            now, ahead = self.trajectory.positions([t, t + horizon])
+        value = float(np.linalg.norm(state.weight * robot.task_error(ahead, now))) / horizon
+        return value if math.isfinite(value) else 0.0  # a NaN path is refused by residuals
 
 
 class HeldCommandTargets(Targets):
@@ -122,3 +147,8 @@ class HeldCommandTargets(Targets):
         for i, x in enumerate(knots, start):
             out[i] -= weight * error(x, x0)
         return out
+
+    def speed(self, robot: Robot, state: KinematicState, xdot: FloatArray, t: float) -> float:
+        r""":math:`\bar v = \|\dot x_w\|`, the held command's speed."""
+        value = float(np.linalg.norm(xdot))
+        return value if math.isfinite(value) else 0.0

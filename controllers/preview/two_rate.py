@@ -37,7 +37,8 @@ from otmm_qp.state import KinematicState
 from otmm_qp.validation import Boolean, Constraints, Interval, check_params
 
 from ..qp.backend import QpBackend
-from .backend import InfeasiblePolicy, PreviewBackend
+from .backend import PreviewBackend
+from .parameters import InfeasiblePolicy, PeakScale, PreviewParameters
 
 __all__ = ["TwoRatePreviewBackend"]
 
@@ -54,8 +55,9 @@ class TwoRatePreviewBackend(PreviewBackend):
             Ignored for ``every = 1`` (the preview backend).
         limits: The limits of both QPs (None: velocity and position, gain 0.5).
         horizon, knots, fine_steps, coarse_step, regularization, smoothness, jump,
-        trust_region, solver, infeasible_policy, fast_path, peak, peak_jump: As
-        :class:`PreviewBackend`.
+        trust_region, solver, infeasible_policy, fast_path, peak, peak_jump, peak_scale: As
+        :class:`PreviewBackend` (one :class:`~.parameters.PreviewParameters`, less
+        ``working_set``).
     """
 
     name = "preview_two_rate"
@@ -68,6 +70,7 @@ class TwoRatePreviewBackend(PreviewBackend):
 
     def __init__(
         self,
+        *,
         every: int = 10,
         tracker_regularization: float = 1e-4,
         horizon: float = 1.0,
@@ -84,20 +87,18 @@ class TwoRatePreviewBackend(PreviewBackend):
         fast_path: bool = True,
         peak: float = 0.0,
         peak_jump: float = 0.0,
+        peak_scale: PeakScale = "absolute",
         sliced: bool = True,
     ) -> None:
         check_params(self, locals())
-        super().__init__(
-            horizon, knots, fine_steps, coarse_step, regularization, smoothness, jump,
-            trust_region, solver, limits, infeasible_policy, fast_path, peak, peak_jump,
-        )  # fmt: skip
+        self._configure(PreviewParameters.pick(locals()))  # every preview parameter, by name
         self.every = int(every)
         self.sliced = bool(sliced) and self.every > 1  # every = 1: the preview backend
         self.tracker = QpBackend(
             regularization=float(tracker_regularization),
-            solver=solver,
+            solver=self.parameters.solver,
             limits=list(self.limits.all),
-            infeasible_policy=infeasible_policy,
+            infeasible_policy=self.parameters.infeasible_policy,
         )
 
     def bind(self, robot: Robot, dt: float) -> None:

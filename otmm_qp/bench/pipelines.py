@@ -53,10 +53,14 @@ EVERY_STEP = "QP every step"
 #: along the recording run's trajectory; ``hold`` keeps a run-time infeasible QP from stopping
 #: the bench (it is timed like any step).
 MINMAX = {"horizon": 1.0, "peak": 0.003, "peak_jump": 0.03, "infeasible_policy": "hold"}
-#: The deployable preview row (issue 37): ``preview-minmax``'s weights, 8 knots, working set.
-DEPLOYABLE = "preview-minmax-k8 (deployable)"
+#: The deployable preview row (issue 37): 8 knots, working set, the peak weights from the arm's
+#: speed limit and the window's task speed (``peak_scale: arm``).
+DEPLOYABLE = "preview-k8-arm (deployable)"
+#: ``preview-minmax-k8``: the same grid and solve with ``preview-minmax``'s fixed weights.
+K8 = {**MINMAX, "knots": 8, "working_set": True, "fast_path": False}
 PREVIEWS: tuple[tuple[str, str, dict[str, Any]], ...] = (
-    (DEPLOYABLE, "preview", {**MINMAX, "knots": 8, "working_set": True, "fast_path": False}),
+    (DEPLOYABLE, "preview", {**K8, "peak": 0.3, "peak_jump": 1.0, "peak_scale": "arm"}),
+    ("preview-minmax-k8", "preview", K8),
     ("preview-minmax (16 knots)", "preview", MINMAX),
     ("preview (H = 1 s)", "preview", {"horizon": 1.0, "infeasible_policy": "hold"}),
     ("preview_causal (H = 1 s)", "preview_causal", {"horizon": 1.0, "infeasible_policy": "hold"}),

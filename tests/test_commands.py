@@ -198,6 +198,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "profile_preview.py",  # test_qp_bench.py
         "bench_reach.py",
         "bench_decide.py",
+        "bench_coupled_planar.py",  # test_bench_certificates.py
         "stress_signals.py",
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}

@@ -50,7 +50,7 @@ from otmm_qp.output.summary import RunOutcome
 from otmm_qp.status import Status
 
 #: ``(column, heading, format)`` shown per scenario, from the metric table; every column is
-#: lower-is-better (``tests/test_metric_table.py``).
+#: lower-is-better (``tests/metrics/test_table.py``).
 REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = columns(
     "rms_error",
     "max_error",

@@ -39,7 +39,7 @@ from otmm_qp.studies.oracle import REFERENCE_NAME
 from otmm_qp.studies.rows import read
 from otmm_qp.studies.statistics import holm, mcnemar_exact, paired_test
 
-__all__ = ["headline", "limit_cost", "main", "pair_cost", "plant_rows"]
+__all__ = ["headline", "limit_cost", "pair_cost", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
@@ -257,14 +257,3 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
             f"{t.lower} / {t.ties} / {t.higher}, {p_errors[i]:.2g} |"
         )
     return "\n".join(lines) + "\n"
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Deprecated alias of ``otmm-qp study plants`` (kept for one release)."""
-    from otmm_qp.cli import deprecated_alias
-
-    return deprecated_alias("otmm_qp.studies.plant_headline", ["study", "plants"], argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -30,7 +30,7 @@ import numpy as np
 from otmm_qp.metrics.table import STUDY_MEDIANS, STUDY_PAIRED, Metric
 from otmm_qp.metrics.table import metric as metric_row
 from otmm_qp.output.escape import escape
-from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
+from otmm_qp.paths import atomic_write_bytes, atomic_write_text, ensure_inside, safe_name
 from otmm_qp.studies.columns import KEPT_LIMITS, number
 from otmm_qp.studies.criteria import FAILURE_CAUSES
 from otmm_qp.studies.decide import GUARANTEE, judge_rows, kind_sentence

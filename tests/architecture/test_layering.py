@@ -3,8 +3,9 @@ report modules independent, one safe-output module, one home for the paper's con
 
 The import graph holds every first-party import: module level and inside every function body
 (an import deferred into a function is still a dependency); only ``if TYPE_CHECKING:`` blocks
-are left out, and the few lazy imports :data:`ALLOWED_LAZY` names. A planted function-level
-import that closes a cycle fails the test (checked below)."""
+are left out (the ``python -m`` aliases that once called the CLI from below are retired, so no
+import is excused). A planted function-level import that closes a cycle fails the test (checked
+below)."""
 
 from __future__ import annotations
 
@@ -55,18 +56,6 @@ def _all_imports(source: str) -> set[str]:
     return found
 
 
-#: Lazy imports left out of the graph, ``(module, imported module)``, each with its reason.
-#: The one-release aliases ``python -m otmm_qp.studies.{group_verdict,tradeoff,plant_headline}``
-#: and ``python -m otmm_qp.output.pareto`` call the command line (``otmm_qp.cli``), which sits
-#: above ``studies/`` and ``output/``.
-ALLOWED_LAZY: set[tuple[str, str]] = {
-    ("otmm_qp.studies.group_verdict", "otmm_qp.cli"),
-    ("otmm_qp.studies.tradeoff", "otmm_qp.cli"),
-    ("otmm_qp.studies.plant_headline", "otmm_qp.cli"),
-    ("otmm_qp.output.pareto", "otmm_qp.cli"),
-}
-
-
 def _graph(planted: dict[str, str] | None = None) -> dict[str, set[str]]:
     """Module → first-party modules it imports; ``planted`` appends source to modules."""
     files = {_module(p): p for p in PACKAGE.rglob("*.py")}
@@ -74,15 +63,8 @@ def _graph(planted: dict[str, str] | None = None) -> dict[str, set[str]]:
     for module, path in files.items():
         source = path.read_text(encoding="utf-8") + (planted or {}).get(module, "")
         targets = {t for t in _all_imports(source) if t in files} - {module}
-        graph[module] = {t for t in targets if (module, t) not in ALLOWED_LAZY}
+        graph[module] = targets
     return graph
-
-
-def test_the_allowed_lazy_imports_exist() -> None:
-    """Every :data:`ALLOWED_LAZY` entry is still an import (delete it when it goes)."""
-    files = {_module(p): p for p in PACKAGE.rglob("*.py")}
-    for module, target in ALLOWED_LAZY:
-        assert target in _all_imports(files[module].read_text(encoding="utf-8")), (module, target)
 
 
 def test_no_import_cycle_between_modules() -> None:
@@ -190,10 +172,10 @@ def test_replay_reads_run_folders_only_through_results_dir() -> None:
         assert not named, f"{path.relative_to(ROOT)} names the layout: {sorted(named)}"
 
 
-#: Leaf modules (they import only ``otmm_qp.exceptions`` and each other), each a node of its own
-#: in the package graph: safe names and atomic writes, and the stop-signal path (backends hold
-#: SIGINT around native solvers without the harness), are used from every layer.
-LEAF_MODULES = {"otmm_qp.output.paths", "otmm_qp.interrupt"}
+#: Leaf modules at the package root (they import only ``otmm_qp.exceptions`` and each other):
+#: safe names and atomic writes, and the stop-signal path (backends hold SIGINT around native
+#: solvers without the harness), are used from every layer.
+LEAF_MODULES = {"otmm_qp.paths", "otmm_qp.interrupt"}
 
 #: Upward imports left out of the package graph (none: the plants-study headline lives in
 #: ``studies/`` and the trajectory that rebuilds a study task in ``scenarios/``).
@@ -201,8 +183,8 @@ KNOWN_UPWARD_IMPORTS: set[tuple[str, str]] = set()
 
 
 def _package(module: str) -> str:
-    """``otmm_qp.<package>`` of a module (a top-level or leaf module is its own node)."""
-    return module if module in LEAF_MODULES else ".".join(module.split(".")[:2])
+    """``otmm_qp.<package>`` of a module (a top-level module is its own node)."""
+    return ".".join(module.split(".")[:2])
 
 
 def _strongly_connected(graph: dict[str, set[str]]) -> list[set[str]]:
@@ -247,6 +229,7 @@ def test_no_import_cycle_between_packages() -> None:
 
 def _check_package_cycles(graph: dict[str, set[str]]) -> None:
     for leaf in LEAF_MODULES:
+        assert leaf.count(".") == 1, f"{leaf} is a leaf: it belongs at the package root"
         allowed = ({"otmm_qp.exceptions"} | LEAF_MODULES) - {leaf}
         assert graph[leaf] <= allowed, f"{leaf} imports {sorted(graph[leaf])}"
     packages: dict[str, set[str]] = {}

@@ -10,7 +10,6 @@ page data, unescaped). Skipped only when Chromium is absent and CI is not set.
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,7 +17,8 @@ import pytest
 
 from otmm_qp.cli import main
 from otmm_qp.output.escape import escape, fill_template
-from otmm_qp.replay.browser import Page, chromium_page, find_chromium
+from otmm_qp.replay.browser import Page
+from tests.factories import browser_page, ur5_wrist_run
 
 #: Controller names that break out of each context if not escaped (``window.pwned`` is set
 #: by any script that runs).
@@ -30,36 +30,16 @@ EXPERIMENT = "w__META__x__SCENE__"
 
 
 def _config() -> str:
-    controllers = "".join(
-        f"      - name: {json.dumps(name)}\n        backend: {{type: dls, damping: 0.05}}\n"
-        for name in HOSTILE
-    )
-    return f"""
-name: {json.dumps("s</title><script>window.pwned=3</script>")}
-dt: 0.01
-loop_modes: [clik]
-experiments:
-  - name: {EXPERIMENT}
-    robot: {{type: pinocchio, name: ur5, task: pose}}
-    task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
-    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory:
-      type: pose_line
-      end: [0.6214, 0.1878, 0.3384]
-      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
-      duration: 0.2
-    duration: 0.2
-    controllers:
-{controllers}"""
+    controllers = [
+        f"name: {json.dumps(name)}\nbackend: {{type: dls, damping: 0.05}}" for name in HOSTILE
+    ]
+    title = json.dumps("s</title><script>window.pwned=3</script>")
+    return ur5_wrist_run(title, controllers, motion=0.2, experiment=EXPERIMENT)
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Page]:
-    if find_chromium() is None:
-        if os.environ.get("CI"):
-            pytest.fail("Chromium is required for the browser tests in CI")
-        pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
-    with chromium_page(900, 640) as page:
+    with browser_page(900, 640) as page:
         yield page
 
 

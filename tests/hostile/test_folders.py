@@ -16,42 +16,25 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
+from otmm_qp import paths as paths_module
 from otmm_qp.cli import main
-from otmm_qp.output import paths as paths_module
 from otmm_qp.output.folders import KIND_NAME, folder_kind
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import EPISODES, read_episodes, read_study
 from tests.cli_errors import refusal_text
+from tests.factories import PINV, tiny_run, tiny_study
 
 ROOT = Path(__file__).resolve().parents[2]
-TINY = {
-    "name": "tiny",
-    "seed": 3,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 1,
-    "reference": {"enabled": False},  # these tests count controller episodes and parts
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [{"type": "near_singular", "count": 3, "duration": [1.0, 1.5]}],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
-        {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
-    ],
-}
-RUN = """
-name: r
-dt: 0.05
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.3, period: 10.0}
-    duration: 0.3
-    controllers:
-      - {name: pinv, backend: {type: pinv}}
-"""
+# The reference is off: these tests count controller episodes and parts.
+TINY = tiny_study(
+    "tiny",
+    seed=3,
+    chunk_size=1,
+    reference={"enabled": False},
+    generators=[{"type": "near_singular", "count": 3, "duration": [1.0, 1.5]}],
+)
+RUN = tiny_run([PINV], name="r", dt=0.05, radius=0.3, duration=0.3)
 
 
 def _study_file(tmp_path: Path, data: dict, name: str = "study.yaml") -> Path:

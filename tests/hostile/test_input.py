@@ -9,25 +9,12 @@ from pathlib import Path
 
 import pytest
 
+from otmm_qp import paths as paths_module
 from otmm_qp.cli import main
-from otmm_qp.output import paths as paths_module
 from tests.cli_errors import refusal_text
+from tests.factories import tiny_run
 
-GOOD = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.2
-    controllers:
-      - name: OTMM
-        filters: [{type: otmm, sigma_s: 0.05, p: linear}]
-        backend: {type: pinv}
-"""
+GOOD = tiny_run(duration=0.2)
 QP = "backend: {type: qp, solver: daqp}"
 
 ALIAS_BOMB = (

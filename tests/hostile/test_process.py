@@ -16,26 +16,23 @@ from hypothesis import strategies as st
 
 from otmm_qp.cli import main
 from tests.cli_errors import refusal_text
+from tests.factories import DLS, PINV, tiny_run
 
 ROOT = Path(__file__).resolve().parents[2]
 OTMM_QP = [sys.executable, "-m", "otmm_qp.cli"]
 
-LONG = """
-name: long
-dt: 0.001
-loop_modes: [clik, feedforward]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 3.0
-    controllers:
-      - {name: pinv, backend: {type: pinv}}
-      - {name: dls, backend: {type: dls, damping: 0.05}}
-      - {name: otmm, filters: [{type: otmm, sigma_s: 0.05, p: linear}], backend: {type: pinv}}
-      - {name: dls2, backend: {type: dls, damping: 0.1}}
-"""
+LONG = tiny_run(
+    [
+        PINV,
+        DLS,
+        "{name: otmm, filters: [{type: otmm, sigma_s: 0.05, p: linear}], backend: {type: pinv}}",
+        "{name: dls2, backend: {type: dls, damping: 0.1}}",
+    ],
+    name="long",
+    dt=0.001,
+    loop_modes="[clik, feedforward]",
+    duration=3.0,
+)
 
 
 def _children(pid: int) -> list[int]:

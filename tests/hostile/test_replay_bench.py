@@ -10,27 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from otmm_qp import paths as paths_module
 from otmm_qp.bench import run as bench_run
 from otmm_qp.cli import main
-from otmm_qp.output import paths as paths_module
 from otmm_qp.output.run_csv import thinned_rows
 from otmm_qp.replay.stored_runs import MAX_ROWS, read_run
 from tests.cli_errors import refusal_text
+from tests.factories import DLS, PINV, tiny_run
 
-RUN = """
-name: r
-dt: 0.05
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.3, period: 10.0}
-    duration: 0.5
-    controllers:
-      - {name: pinv, backend: {type: pinv}}
-      - {name: dls, backend: {type: dls, damping: 0.05}}
-"""
+RUN = tiny_run([PINV, DLS], name="r", dt=0.05, radius=0.3, duration=0.5)
 
 
 @pytest.fixture(scope="module")

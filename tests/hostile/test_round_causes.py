@@ -18,22 +18,10 @@ from otmm_qp.exceptions import ParameterError
 from otmm_qp.plants.declaration import PlantDeclaration, combine
 from otmm_qp_controllers.preview.knots import BYTES_PER_ENTRY, MAX_QP_BYTES, KnotGrid
 from tests.cli_errors import refusal_text
+from tests.factories import tiny_run
 from tests.test_plugins import patch_entry_points
 
-CONFIG = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.1
-    controllers:
-      - name: C
-        backend: {type: pinv}
-"""
+CONFIG = tiny_run(["name: C\nbackend: {type: pinv}"], duration=0.1)
 
 
 def _cli(

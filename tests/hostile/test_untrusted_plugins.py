@@ -28,6 +28,7 @@ from otmm_qp.state import KinematicState
 from otmm_qp.studies.storage import read_episodes
 from otmm_qp.trajectories.circle import CircleTrajectory
 from otmm_qp_controllers.pinv import PseudoInverseBackend, truncated_pseudoinverse_apply
+from tests.factories import experiment, tiny_run
 
 FAIL_AT = 3
 
@@ -182,30 +183,10 @@ def test_the_default_plant_is_the_euler_step_of_the_robot() -> None:
     np.testing.assert_array_equal(plain.q[1:], plain.q[:-1] + plain.qdot[:-1] * episode.dt)
 
 
-GOOD = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.4
-    controllers:
-      - name: bad
-        backend: {type: misbehaving}
-      - name: good
-        backend: {type: pinv}
-  - name: B
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.4
-    controllers:
-      - name: good
-        backend: {type: pinv}
-"""
+GOOD = tiny_run(
+    ["name: bad\nbackend: {type: misbehaving}", "name: good\nbackend: {type: pinv}"],
+    more=experiment(["name: good\nbackend: {type: pinv}"], name="B"),
+)
 
 
 @pytest.mark.parametrize("case", ["RuntimeError", "SystemExit", "wrong shape"])

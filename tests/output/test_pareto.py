@@ -11,7 +11,6 @@ from otmm_qp.exceptions import OtmmError
 from otmm_qp.output.pareto import (
     Entry,
     dominates,
-    main,
     pareto_front,
     pareto_markdown,
     read_summary,
@@ -57,8 +56,6 @@ def test_missing_summary_is_a_one_line_error(
     assert cli(["pareto", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("otmm-qp: error:") and "no summary.csv" in err and "\n" not in err
-    assert main([str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2  # the old alias
-    assert capsys.readouterr().err.startswith("otmm-qp: note: python -m otmm_qp.output.pareto")
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "summary.csv").write_text("experiment,loop_mode\nE1,clik\n", encoding="utf-8")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from otmm_qp.cli import main
 from otmm_qp.output.report import REPORT_COLUMNS, Row, best_values, limit_note, ranking
+from tests.factories import DLS_ITEM, PINV_ITEM, ur5_wrist_run
 
 
 def _row(controller: str, experiment: str = "e", **values: float) -> Row:
@@ -38,27 +39,7 @@ def test_a_shared_best_value_is_a_tie_not_best() -> None:
     assert best_values(rows)["rms_error"] == 0.4
 
 
-ARM = """\
-name: limits
-dt: 0.01
-loop_modes: [clik]
-experiments:
-  - name: wrist
-    robot: {type: pinocchio, name: ur5, task: pose}
-    task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
-    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory:
-      type: pose_line
-      end: [0.6214, 0.1878, 0.3384]
-      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
-      duration: 4.0
-    duration: 5.0
-    controllers:
-      - name: pinv
-        backend: {type: pinv}
-      - name: dls
-        backend: {type: dls, damping: 0.05}
-"""
+ARM = ur5_wrist_run("limits", [PINV_ITEM, DLS_ITEM], motion=4.0, duration=5.0)
 
 
 def test_run_report_flags_the_unfiltered_wrist_crossing(tmp_path: Path) -> None:

@@ -11,32 +11,22 @@ import numpy as np
 import pytest
 
 from otmm_qp.cli import main
-from otmm_qp.studies.plant_headline import main as headline_main
 from otmm_qp.studies.spec import controller_record, expand_controllers, parse_study
 from otmm_qp.studies.storage import read_episodes
 from tests.cli_errors import refusal_text
+from tests.factories import OTMM_PINV, tiny_run
 
 ROOT = Path(__file__).resolve().parents[2]
 
-RUN = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 1.0
-    PLANT
-    controllers:
-      - name: otmm
-        filters: [{type: otmm, sigma_s: 0.05, p: linear}]
-        backend: {type: pinv}
-      - name: dls-conditioned
-        backend: {type: dls, damping: 0.05}
-        conditioning: [{type: speed_scale, margin: 0.5}, {type: position_clip}]
-"""
+RUN = tiny_run(
+    [
+        OTMM_PINV.replace("OTMM", "otmm", 1),
+        "name: dls-conditioned\nbackend: {type: dls, damping: 0.05}\n"
+        "conditioning: [{type: speed_scale, margin: 0.5}, {type: position_clip}]",
+    ],
+    duration=1.0,
+    extra="    PLANT\n",
+)
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -142,7 +132,6 @@ def test_plants_axis_names_rows_and_keeps_old_keys(tmp_path: Path) -> None:
     rows = [r for r in table.to_pylist() if r["controller"] != "oracle"]
     assert {r["plant"] for r in rows} == {"ideal", "lag", "noise"}
     assert len(rows) == 2 * 3 * 3
-    assert headline_main([str(out)]) == 0  # the deprecated alias
     assert main(["study", "plants", str(out)]) == 0
     assert main(["study", "plants", str(tmp_path)]) == 2
 

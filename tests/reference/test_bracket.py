@@ -22,30 +22,24 @@ from otmm_qp.studies.report import RELATIVE_ERROR, load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 from tests.cli_errors import refusal_text
+from tests.factories import LOOSE_SUCCESS, PINV_ROW, tiny_study
 
 DT = 0.02
 
-PLANAR = {
-    "name": "bracket-planar",
-    "seed": 1,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 4,
-    "time_series": {"tasks": 0},
-    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
-    "robots": [
-        {"name": "planar3", "robot": {"type": "planar", "link_lengths": [1.0, 0.8, 0.5]}},
-    ],
-    "generators": [
+PLANAR = tiny_study(
+    "bracket-planar",
+    seed=1,
+    chunk_size=4,
+    time_series={"tasks": 0},
+    success=LOOSE_SUCCESS,
+    generators=[
         {"type": "near_singular", "count": 2, "distance": [0.0, 0.1], "duration": [0.8, 1.0]},
         {"type": "beyond_reach", "count": 2, "duration": [0.8, 1.0]},
         {"type": "boundary", "count": 1, "duration": [0.8, 1.0]},
     ],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
-        {"name": "qp", "backend": {"type": "qp", "solver": "daqp"}},
-    ],
-}
+    controllers=[PINV_ROW, {"name": "qp", "backend": {"type": "qp", "solver": "daqp"}}],
+    robots=[{"name": "planar3", "robot": {"type": "planar", "link_lengths": [1.0, 0.8, 0.5]}}],
+)
 
 ARMS = {
     "name": "bracket-arms",

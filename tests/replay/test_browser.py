@@ -6,7 +6,6 @@ Skipped only when Chromium is absent and CI is not set; in CI a missing browser 
 from __future__ import annotations
 
 import io
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,42 +14,24 @@ import pytest
 from PIL import Image
 
 from otmm_qp.cli import main
-from otmm_qp.replay.browser import Page, chromium_page, find_chromium
+from otmm_qp.replay.browser import Page
+from tests.factories import PINV_ITEM, browser_page, ur5_wrist_run
 
-ARM = """
-name: arm
-dt: 0.01
-loop_modes: [clik]
-experiments:
-  - name: wrist
-    robot: {type: pinocchio, name: ur5, task: pose}
-    task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
-    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory:
-      type: pose_line
-      end: [0.6214, 0.1878, 0.3384]
-      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
-      duration: 0.4
-    duration: 0.4
-    controllers:
-      - name: pinv
-        backend: {type: pinv}
-      - name: otmm+dls
-        filters: [{type: otmm, sigma_s: 0.05, p: linear, corank: all}]
-        backend: {type: dls, damping: 0.05}
-"""
+ARM = ur5_wrist_run(
+    "arm",
+    [
+        PINV_ITEM,
+        "name: otmm+dls\nfilters: [{type: otmm, sigma_s: 0.05, p: linear, corank: all}]\n"
+        "backend: {type: dls, damping: 0.05}",
+    ],
+    motion=0.4,
+)
 WIDTH, HEIGHT, PANEL = 900, 640, 118  # viewport and the control panel height [px]
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Page]:
-    if find_chromium() is None:
-        if os.environ.get("CI"):
-            pytest.fail(
-                "Chromium is required for the browser tests in CI (apt-get install chromium)"
-            )
-        pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
-    with chromium_page(WIDTH, HEIGHT) as page:
+    with browser_page(WIDTH, HEIGHT) as page:
         yield page
 
 

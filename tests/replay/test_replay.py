@@ -18,54 +18,25 @@ from otmm_qp.replay.planar_animation import TIP_COLOR
 from otmm_qp.replay.robot_model import fit_planar_arm, identify_urdf_arm, load_robot
 from otmm_qp.replay.stored_runs import discover_runs, group_scenarios
 from tests.cli_errors import refusal_text
+from tests.factories import DLS_ITEM, OTMM_PINV, PINV_ITEM, tiny_run, ur5_wrist_run
 
-PLANAR = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: E1.circle
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 1.2
-    controllers:
-      - name: RMRC
-        backend: {type: pinv}
-      - name: OTMM/linear
-        filters: [{type: otmm, sigma_s: 0.05, p: linear}]
-        backend: {type: pinv}
-  - name: three-link
-    robot: {type: planar, link_lengths: [0.5, 0.4, 0.3]}
-    q0: [0.3, 0.5, 0.4]
-    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4}
-    duration: 0.4
-    controllers:
-      - name: DLS
-        backend: {type: dls, damping: 0.05}
-"""
+PLANAR = tiny_run(
+    ["name: RMRC\nbackend: {type: pinv}", OTMM_PINV.replace("OTMM", "OTMM/linear", 1)],
+    experiment_name="E1.circle",
+    duration=1.2,
+    more=(
+        "  - name: three-link\n"
+        "    robot: {type: planar, link_lengths: [0.5, 0.4, 0.3]}\n"
+        "    q0: [0.3, 0.5, 0.4]\n"
+        "    trajectory: {type: quintic_line, end: [0.5, 0.6], duration: 0.4}\n"
+        "    duration: 0.4\n"
+        "    controllers:\n"
+        "      - name: DLS\n"
+        "        backend: {type: dls, damping: 0.05}\n"
+    ),
+)
 
-ARM = """
-name: arm
-dt: 0.01
-loop_modes: [clik]
-experiments:
-  - name: wrist
-    robot: {type: pinocchio, name: ur5, task: pose}
-    task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]
-    q0: [0.0, -1.2, 1.5, -1.8, 0.3, 0.0]
-    trajectory:
-      type: pose_line
-      end: [0.6214, 0.1878, 0.3384]
-      end_quaternion: [-0.5539, 0.5836, 0.43954, 0.39926]
-      duration: 0.3
-    duration: 0.3
-    controllers:
-      - name: pinv
-        backend: {type: pinv}
-      - name: dls
-        backend: {type: dls, damping: 0.05}
-"""
+ARM = ur5_wrist_run("arm", [PINV_ITEM, DLS_ITEM], motion=0.3)
 
 
 def _run(tmp_path_factory: pytest.TempPathFactory, text: str, name: str) -> Path:

@@ -8,14 +8,14 @@ scrolling), the claims carry no raw LaTeX, and the report stays small.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from otmm_qp.cli import main
-from otmm_qp.replay.browser import Page, chromium_page, find_chromium
+from otmm_qp.replay.browser import Page
+from tests.factories import browser_page
 
 ROOT = Path(__file__).resolve().parents[2]
 WIDTH, HEIGHT = 1400, 900
@@ -31,13 +31,7 @@ def paper(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Page]:
-    if find_chromium() is None:
-        if os.environ.get("CI"):
-            pytest.fail(
-                "Chromium is required for the browser tests in CI (apt-get install chromium)"
-            )
-        pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
-    with chromium_page(WIDTH, HEIGHT) as page:
+    with browser_page(WIDTH, HEIGHT) as page:
         yield page
 
 

@@ -12,26 +12,24 @@ from otmm_qp.reference import REFERENCE_COLUMNS
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
+from tests.factories import LOOSE_SUCCESS, tiny_study
 
-STUDY = {
-    "name": "oracle",
-    "seed": 4,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 2,
-    "time_series": {"tasks": 0},
-    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+STUDY = tiny_study(
+    "oracle",
+    seed=4,
+    chunk_size=2,
+    time_series={"tasks": 0},
+    success=LOOSE_SUCCESS,
+    generators=[
         {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
         {"type": "random_reachable", "count": 2, "duration": [1.0, 1.5]},
         {"type": "random_reachable", "count": 1, "duration": [1.0, 1.5], "name": "slow"},
     ],
-    "controllers": [
+    controllers=[
         {"name": "qp", "backend": {"type": "qp", "solver": "daqp"}},
         {"name": "dls", "backend": {"type": "dls"}, "grid": {"damping": [0.02, 0.05]}},
     ],
-}
+)
 
 
 def _rows(out: Path) -> list[dict]:

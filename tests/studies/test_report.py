@@ -30,28 +30,22 @@ from otmm_qp.studies.report import (
 from otmm_qp.studies.schema import SuccessCriteria
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
+from tests.factories import LOOSE_SUCCESS, tiny_study
 
-STUDY = {
-    "name": "drill",
-    "seed": 5,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 2,
-    "time_series": {"tasks": 0},
-    # The real reference is off: the fixture ``with_oracle`` adds synthetic reference rows whose
-    # values are known (the real one is tested in test_reference*.py and test_readme_numbers.py).
-    "reference": {"enabled": False},
-    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+# The real reference is off: the fixture ``with_oracle`` adds synthetic reference rows whose
+# values are known (the real one is tested in test_reference*.py and test_readme_numbers.py).
+STUDY = tiny_study(
+    "drill",
+    seed=5,
+    chunk_size=2,
+    time_series={"tasks": 0},
+    reference={"enabled": False},
+    success=LOOSE_SUCCESS,
+    generators=[
         {"type": "near_singular", "count": 3, "duration": [1.0, 1.5]},
         {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
     ],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
-        {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
-    ],
-}
+)
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ import yaml
 
 from otmm_qp.cli import main as cli
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.group_verdict import main
 from otmm_qp.studies.spec import load_study, parse_study, plan_study
 
 STUDIES = Path(__file__).resolve().parents[2] / "configs" / "studies"
@@ -53,10 +52,11 @@ def test_a_tiny_cut_runs_and_gets_a_verdict(tmp_path: Path, capsys) -> None:
     outcome = run_study(plan, tmp_path / "study", "tiny", workers=1)
     assert outcome.ran == 12 + 4  # 3 controllers x 4 tasks, and the 4 tasks' references
     report = tmp_path / "verdict.md"
-    assert main([str(tmp_path / "study"), "--ours", "sigma_lm", "--out", str(report)]) == 0
+    verdict = ["study", "verdict", str(tmp_path / "study"), "--ours"]
+    assert cli([*verdict, "sigma_lm", "--out", str(report)]) == 0
     text = report.read_text()
     assert "| planar2 | held_target |" in text and "| planar2 | boundary |" in text
-    assert main([str(tmp_path / "study"), "--ours", "nope"]) == 2
+    assert cli([*verdict, "nope"]) == 2
     # --highlight: validated against the study's controllers before anything is computed
     capsys.readouterr()
     study = str(tmp_path / "study")

@@ -21,21 +21,19 @@ from otmm_qp.studies.execute import dask_client, run_study
 from otmm_qp.studies.spec import load_study, parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
 from tests.cli_errors import refusal_text
+from tests.factories import PINV_ROW, tiny_study
 
-TINY = {
-    "name": "tiny",
-    "seed": 3,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 2,
-    "time_series": {"tasks": 1, "stride": 4},
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+TINY = tiny_study(
+    "tiny",
+    seed=3,
+    chunk_size=2,
+    time_series={"tasks": 1, "stride": 4},
+    generators=[
         {"type": "near_singular", "count": 3, "duration": [1.0, 1.5]},
         {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
     ],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
+    controllers=[
+        PINV_ROW,
         {
             "name": "otmm",
             "filters": [{"type": "otmm", "p": "linear"}],
@@ -43,7 +41,7 @@ TINY = {
             "grid": {"sigma_s": [0.02, 0.05]},
         },
     ],
-}
+)
 
 
 def _write(tmp_path: Path, data: dict, name: str = "study.yaml") -> Path:

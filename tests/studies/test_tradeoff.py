@@ -11,24 +11,22 @@ from otmm_qp.cli import main as study_main
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.report import load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
-from otmm_qp.studies.tradeoff import OUTCOMES, bounded_optimum, main, rebuild_task
+from otmm_qp.studies.tradeoff import OUTCOMES, bounded_optimum, rebuild_task
+from tests.factories import DLS_ROW, LOOSE_SUCCESS, PINV_ROW, tiny_study
 
-STUDY = {
-    "name": "tradeoff",
-    "seed": 3,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 4,
-    "time_series": {"tasks": 0},
-    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+STUDY = tiny_study(
+    "tradeoff",
+    seed=3,
+    chunk_size=4,
+    time_series={"tasks": 0},
+    success=LOOSE_SUCCESS,
+    generators=[
         {"type": "near_singular", "count": 4, "distance": [0.0, 0.1], "duration": [1.0, 1.5]},
         {"type": "beyond_reach", "count": 3, "duration": [1.0, 1.5]},
     ],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
-        {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
+    controllers=[
+        PINV_ROW,
+        DLS_ROW,
         {"name": "jparse", "backend": {"type": "jparse"}},
         {
             "name": "OTMM-directional+pinv",
@@ -36,7 +34,7 @@ STUDY = {
             "backend": {"type": "pinv"},
         },
     ],
-}
+)
 #: Speeds are compared with the solver's step bound, |q_{k+1} − q_k| ≤ v·dt [rad/s].
 SPEED_TOL = 1e-6
 #: The solver's optimality tolerance on max errors [m] (a local method).
@@ -63,10 +61,9 @@ def test_the_command_prints_the_table(study: Path, capsys: pytest.CaptureFixture
     assert study_main([*argv, "--accurate", "pinv"]) == 0
     text = capsys.readouterr().out
     assert "| dls | pinv |" in text
-    assert main([str(study), "--calm", "dls", "--accurate", "pinv", "--tasks", "1"]) == 0  # alias
-    captured = capsys.readouterr()
-    assert captured.err.startswith("otmm-qp: note: python -m otmm_qp.studies.tradeoff is now")
-    rows = [r for r in captured.out.splitlines() if r.startswith("| planar2 |")]
+    argv = ["study", "tradeoff", str(study), "--calm", "dls", "--accurate", "pinv", "--tasks", "1"]
+    assert study_main(argv) == 0
+    rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| planar2 |")]
     assert rows and all(r.split(" | ")[4] == "1" for r in rows)
 
 

@@ -22,7 +22,6 @@ settings.load_profile("ci")
 #: keeps the random order pytest-randomly gave it; so do the tests within each file.
 SLOWEST_FILES = (
     "docs/test_readme_runs.py",  # 119 s: the strategies README commands, run once for the module
-    "docs/test_readme_strategies.py",  # 78 s
     "testing/test_pytest_plugin.py",  # 43 s
     "hostile/test_process.py",  # 33 s
     "controllers/preview/test_backend.py",  # 30 s

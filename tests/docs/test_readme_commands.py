@@ -75,7 +75,8 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
     "otmm-qp study configs/studies/strategies_readme.yaml --out results/strategies-readme "
     "--highlight sigma_lm": (
         ("tests/docs/test_readme_strategies.py::test_readme_strategies_table_is_regenerated",),
-        "into tmp_path, --workers 1",
+        "not re-run by the suite: its stored rows (tests/data/strategies_readme, the file's study "
+        "id) are what tools/doc_tables.py --check renders",
     ),
     "otmm-qp init study --urdf my_jaco_description/robots/kinova.urdf --package-dir . "
     "--frame j2s6s200_end_effector --locked-joints j2s6s200_joint_finger_1 "
@@ -93,7 +94,7 @@ COMMANDS: dict[str, tuple[tuple[str, ...], str]] = {
     ),
     "otmm-qp study verdict results/strategies-readme --ours sigma_lm --kinds": (
         ("tests/docs/test_readme_strategies.py::test_readme_strategies_table_is_regenerated",),
-        "with --out, on the study above",
+        "with --out, on the stored rows of the study above (tools/doc_tables.py --check)",
     ),
     "otmm-qp study configs/studies/strategies_arms.yaml --out results/strategies-arms "
     "--workers 1": (

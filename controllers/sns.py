@@ -75,7 +75,8 @@ class SnsBackend(Backend):
     the saturation set is built one joint at a time (most critical first) and never revised,
     so on redundant Jacobians ``s*`` can be *smaller* than the largest feasible scale
     :math:`\max\{s \in [0,1] : \exists\dot q,\ J\dot q = s\dot x,\ \dot Q_{min} \le
-    \dot q \le \dot Q_{max}\}` (a linear program). Example (``tests/test_strategy_backends.py``):
+    \dot q \le \dot Q_{max}\}` (a linear program). Example
+    (``tests/controllers/test_strategy_backends.py``):
     3-link unit planar arm, q = (−1.0, −1.8, −0.2) rad, ẋ = (−1.0, −1.8) m/s, bound 1 rad/s:
     SNS 0.7309, LP 0.7464. In the test's 300 random redundant cases the greedy scale is below
     the LP optimum in 2 (ratio ≥ 0.991); it never exceeds it (it is always feasible).

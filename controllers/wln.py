@@ -67,7 +67,8 @@ class WeightedLeastNormBackend(Backend):
     λ = 0 (the paper) truncates singular values below the rank cutoff, so an exactly singular
     :math:`J_w` gives a finite step — but not a small one: when large weights make
     :math:`J_wW^{-1/2}` nearly singular (a target that needs a joint past its limit), the
-    undamped WLN diverges (``tests/test_wln.py``: a 3-link arm ends 11.9 rad past a limit);
+    undamped WLN diverges (``tests/controllers/test_wln.py``: a 3-link arm ends 11.9 rad past a
+    limit);
     λ = 0.05 stops it at the limit. Use λ > 0 on real arms.
 
     Args:

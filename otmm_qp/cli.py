@@ -124,20 +124,5 @@ def _dispatch(argv: Sequence[str] | None) -> int:
         return 0
 
 
-def deprecated_alias(module: str, command: Sequence[str], argv: Sequence[str] | None) -> int:
-    """``python -m MODULE ARGS`` as ``otmm-qp COMMAND ARGS``, after a one-line notice.
-
-    The old entry points (``python -m otmm_qp.studies.tradeoff`` ...) are kept as such aliases
-    for one release.
-    """
-    spelled = "otmm-qp " + " ".join(command)
-    print(
-        f"otmm-qp: note: python -m {module} is now `{spelled}`; "
-        "this alias goes in the next release",
-        file=sys.stderr,
-    )
-    return main([*command, *(sys.argv[1:] if argv is None else argv)])
-
-
 if __name__ == "__main__":
     sys.exit(main())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib
 import re
 import subprocess
 import sys
@@ -17,22 +18,16 @@ from otmm_qp.cli import main
 from otmm_qp.exceptions import InfeasibleProblem
 from otmm_qp.state import KinematicState
 from tests.cli_errors import refusal_text
+from tests.factories import tiny_run
 
-GOOD = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.4
-    controllers:
-      - name: OTMM
-        filters: [{type: otmm, sigma_s: 0.05, p: linear}]
-        backend: {type: pinv}
-"""
+RETIRED_ALIASES = (
+    "otmm_qp.studies.group_verdict",
+    "otmm_qp.studies.tradeoff",
+    "otmm_qp.studies.plant_headline",
+    "otmm_qp.output.pareto",
+)
+
+GOOD = tiny_run()
 
 BAD = {
     "malformed YAML": (GOOD.replace("dt: 0.02", "dt: [0.02"), r"malformed YAML at line \d+"),
@@ -252,3 +247,13 @@ def test_default_run_is_the_paper_reproduction(tmp_path: Path) -> None:
     claims = (tmp_path / "claims.md").read_text()
     assert claims.count("| E2: RMRC breaks from the singular start |") == 3
     assert (tmp_path / "report.html").exists() and (tmp_path / "summary.md").exists()
+
+
+@pytest.mark.parametrize("module", RETIRED_ALIASES)
+def test_the_retired_python_m_aliases_are_gone(module: str) -> None:
+    """The one-release ``python -m`` aliases are retired as promised: no ``main``, no
+    ``__main__`` block (``otmm-qp study verdict|tradeoff|plants`` and ``otmm-qp pareto`` stay)."""
+    imported = importlib.import_module(module)
+    assert not hasattr(imported, "main")
+    assert "__main__" not in Path(str(imported.__file__)).read_text(encoding="utf-8")
+    assert not hasattr(importlib.import_module("otmm_qp.cli"), "deprecated_alias")

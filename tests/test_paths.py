@@ -1,4 +1,4 @@
-"""Safe output names and atomic writes (otmm_qp.output.paths)."""
+"""Safe output names and atomic writes (otmm_qp.paths)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from otmm_qp.exceptions import OtmmError, OutputPathError
-from otmm_qp.output.paths import (
+from otmm_qp.paths import (
     UniqueNames,
     atomic_open,
     atomic_write_bytes,

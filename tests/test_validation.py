@@ -35,6 +35,7 @@ from otmm_qp.validation import (
     signature_parameters,
 )
 from tests.cli_errors import refusal_text
+from tests.factories import tiny_run
 
 NAN, INF = float("nan"), float("inf")
 
@@ -342,21 +343,7 @@ def test_the_gain_cap_check_has_one_home() -> None:
 
 # --- the CLI: one line, exit 2, no traceback, nothing computed ------------------------------
 
-CONFIG = """
-name: tiny
-dt: 0.02
-loop_modes: [clik]
-experiments:
-  - name: A
-    robot: {type: planar, link_lengths: [1.0, 0.8]}
-    q0: [0.927, -2.5]
-    trajectory: {type: circle, centre: [1.2, 0.0], radius: 0.6, period: 10.0}
-    duration: 0.1
-    controllers:
-      - name: C
-        filters: [FILTER]
-        backend: BACKEND
-"""
+CONFIG = tiny_run(["name: C\nfilters: [FILTER]\nbackend: BACKEND"], duration=0.1)
 DEFAULT_FILTER = "{type: identity}"
 
 #: (filter block or None, backend block, pattern of the one error line).

@@ -22,7 +22,7 @@ from otmm_qp.bench.timing import (
 )
 from otmm_qp.exceptions import ParameterError
 from otmm_qp.output.folders import claim_folder
-from otmm_qp.output.paths import atomic_write_text
+from otmm_qp.paths import atomic_write_text
 
 ROUNDS = 5
 #: Fewest replayed states accepted (the percentiles need a few samples per round).

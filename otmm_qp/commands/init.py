@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.output.paths import atomic_write_text
+from otmm_qp.paths import atomic_write_text
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 
 NAME = "init"

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from otmm_qp.config.load import DEFAULT_CONFIG, embedded_config_path, load_config
 from otmm_qp.exceptions import OtmmError
-from otmm_qp.output.paths import safe_name
+from otmm_qp.paths import safe_name
 
 NAME = "run"
 HELP = "run a YAML experiment file"

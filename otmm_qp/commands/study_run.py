@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
     from otmm_qp.output.folders import check_out_argument
-    from otmm_qp.output.paths import safe_name
+    from otmm_qp.paths import safe_name
 
     given = check_out_argument(args.out) if args.out is not None else None
     config = load_study(args.file)

@@ -66,7 +66,7 @@ def describe(row: dict[str, Any], causes: tuple[str, ...]) -> list[str]:
 
 def show(out: Path, wanted: str) -> int:
     """Print the episode ``wanted`` of the study in ``out`` and write its run config."""
-    from otmm_qp.output.paths import ensure_inside, safe_name
+    from otmm_qp.paths import ensure_inside, safe_name
     from otmm_qp.studies.criteria import failure_causes
     from otmm_qp.studies.drilldown import episode_id, find_episode, run_config, write_run_config
     from otmm_qp.studies.rows import load_rows

@@ -46,7 +46,7 @@ def emit(text: str, out: Path | None) -> None:
         except BrokenPipeError:  # e.g. `... | head`: the reader left
             sys.stderr.close()
         return
-    from otmm_qp.output.paths import atomic_write_text
+    from otmm_qp.paths import atomic_write_text
 
     try:
         atomic_write_text(out, text + "\n")

@@ -26,6 +26,6 @@ def dump_config(record: Mapping[str, Any]) -> str:
 
 def write_config(path: Path, record: Mapping[str, Any]) -> None:
     """Write ``record`` to ``path`` atomically (:func:`dump_config`)."""
-    from otmm_qp.output.paths import atomic_write_text
+    from otmm_qp.paths import atomic_write_text
 
     atomic_write_text(path, dump_config(record))

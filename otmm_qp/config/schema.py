@@ -35,8 +35,8 @@ from pydantic import Field, field_validator, model_validator
 
 from otmm_qp.config.base import PluginConfig, Strict, TaskWeight
 from otmm_qp.config.loop import LoopSettings
-from otmm_qp.output.paths import RESERVED_NAMES, safe_name
 from otmm_qp.paper import SIGMA_S
+from otmm_qp.paths import RESERVED_NAMES, safe_name
 from otmm_qp.simulation.loop_modes import LoopMode
 
 __all__ = [

@@ -70,7 +70,7 @@ relaxes the acceleration box only on the steps where it must. The jerk box holds
 meets :math:`H_k \cap A_k \cap S_k`; :math:`S_k` keeps one jerk-limited brake available
 toward each limit, but the two sides are not proven compatible together (a joint whose two
 bounds cross gives :math:`S_k` up), so the jerk is measured, not claimed
-(``tests/test_command_limit.py``, the plants_franka study in docs/plants.md).
+(``tests/limits/test_command_limit.py``, the plants_franka study in docs/plants.md).
 
 Per-joint limits come from the robot or the preset: ``plant`` (the default) reads what the
 run's plant declares (:class:`~otmm_qp.plants.interface.InterfaceLimits`, the

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.output.markdown import Table, table_markdown
-from otmm_qp.output.paths import atomic_write_text
 from otmm_qp.paper import SIGMA_S as DEFAULT_SIGMA_S
+from otmm_qp.paths import atomic_write_text
 from otmm_qp.runner.run import RunRecord, SuiteResult
 
 BREAK_FACTOR = 5.0

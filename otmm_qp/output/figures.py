@@ -36,7 +36,7 @@ from matplotlib.ticker import FuncFormatter, NullLocator
 from matplotlib.transforms import blended_transform_factory
 
 from otmm_qp import interrupt
-from otmm_qp.output.paths import atomic_open, safe_name, unique_names
+from otmm_qp.paths import atomic_open, safe_name, unique_names
 from otmm_qp.robots.robot import FloatArray
 from otmm_qp.runner.prepare import PreparedExperiment
 from otmm_qp.runner.run import ExperimentHook, RunRecord

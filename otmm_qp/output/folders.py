@@ -136,7 +136,7 @@ def remove_kind_files(folder: Path, kind: str) -> None:
 
 
 def _write_marker(folder: Path, kind: str) -> None:
-    from otmm_qp.output.paths import atomic_write_text
+    from otmm_qp.paths import atomic_write_text
 
     marker = folder / KIND_NAME
     if marker.is_symlink():

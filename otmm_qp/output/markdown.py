@@ -2,8 +2,8 @@
 
 :func:`markdown_to_html` renders headings, tables, lists and paragraphs; :class:`Table` and
 :func:`table_markdown` are the only writer of Markdown tables (no other module writes a table
-header or row by hand: ``tests/test_report_package.py`` checks it). A leaf of the output layer:
-the run report and the study report both import it, so neither imports the other.
+header or row by hand: ``tests/studies/test_report_package.py`` checks it). A leaf of the
+output layer: the run report and the study report both import it, so neither imports the other.
 """
 
 from __future__ import annotations

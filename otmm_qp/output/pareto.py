@@ -5,7 +5,7 @@ on all three objectives — ``max_error_window`` [m], ``max_joint_speed`` [rad/s
 ``max_jump`` [rad/s] — and strictly better on at least one. Runs that blew up or did not
 complete are never on a front. Usage::
 
-    python -m otmm_qp.output.pareto RESULTS_DIR [RESULTS_DIR ...] --out DIR
+    otmm-qp pareto RESULTS_DIR [RESULTS_DIR ...] --out DIR
 
 reads each ``summary.csv`` and writes ``DIR/pareto.md`` (per scenario: the front, the best
 run per objective, the runs no other run dominates) and ``DIR/pareto.png``.
@@ -21,9 +21,9 @@ from pathlib import Path
 
 from otmm_qp.metrics.table import metric
 from otmm_qp.output.markdown import Table, table_markdown
-from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text
 from otmm_qp.output.results import IDENTITY_COLUMNS, ResultsDir
 from otmm_qp.output.summary import RunOutcome
+from otmm_qp.paths import atomic_write_bytes, atomic_write_text
 
 #: The objectives, all minimised (rows of the metric table with ``lower_is_better``).
 OBJECTIVES: tuple[str, ...] = tuple(
@@ -193,14 +193,3 @@ def write_pareto(results: Sequence[Path], out_dir: Path) -> tuple[Path, Path]:
     atomic_write_text(markdown, pareto_markdown(entries))
     atomic_write_bytes(png, pareto_figure(entries))
     return markdown, png
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Deprecated alias of ``otmm-qp pareto`` (kept for one release)."""
-    from otmm_qp.cli import deprecated_alias
-
-    return deprecated_alias("otmm_qp.output.pareto", ["pareto"], argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

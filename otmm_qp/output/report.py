@@ -42,15 +42,15 @@ from otmm_qp.exceptions import ConfigError, OutputPathError
 from otmm_qp.metrics.table import columns
 from otmm_qp.output.escape import escape
 from otmm_qp.output.markdown import REPORT_CSS, Table, markdown_to_html, table_markdown
-from otmm_qp.output.paths import atomic_write_text, ensure_inside
 from otmm_qp.output.png import compact_png
 from otmm_qp.output.replays import find_replays
 from otmm_qp.output.results import ResultsDir
 from otmm_qp.output.summary import RunOutcome
+from otmm_qp.paths import atomic_write_text, ensure_inside
 from otmm_qp.status import Status
 
 #: ``(column, heading, format)`` shown per scenario, from the metric table; every column is
-#: lower-is-better (``tests/test_metric_table.py``).
+#: lower-is-better (``tests/metrics/test_table.py``).
 REPORT_COLUMNS: tuple[tuple[str, str, str], ...] = columns(
     "rms_error",
     "max_error",

@@ -7,7 +7,7 @@
     <out>/<experiment>/robot.json                       the config's robot block (replay)
     <out>/replays/, <out>/figures/                      never run time series
 
-Names become path parts only through :func:`~otmm_qp.output.paths.safe_name` (controller
+Names become path parts only through :func:`~otmm_qp.paths.safe_name` (controller
 slugs made unique per experiment), and every path is checked to stay inside the folder.
 Writers and readers (runner sink, report, Pareto index, replay) go through
 :class:`ResultsDir`; a run CSV (format: :mod:`otmm_qp.output.run_csv`) is read streaming and
@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name, unique_names
 from otmm_qp.output.run_csv import (
     MAX_RUN_ROWS,
     RunTable,
@@ -35,6 +34,7 @@ from otmm_qp.output.run_csv import (
     read_run_table,
     write_run_csv,
 )
+from otmm_qp.paths import atomic_write_bytes, ensure_inside, safe_name, unique_names
 from otmm_qp.simulation.run_result import RunResult
 
 SUMMARY_CSV = "summary.csv"

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from otmm_qp.exceptions import ConfigError
-from otmm_qp.output.paths import atomic_open
+from otmm_qp.paths import atomic_open
 from otmm_qp.simulation.run_result import RunResult
 
 __all__ = [

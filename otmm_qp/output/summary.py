@@ -10,7 +10,7 @@ from pathlib import Path
 from otmm_qp.metrics.metrics import METRIC_NAMES, Metrics
 from otmm_qp.metrics.table import columns
 from otmm_qp.output.markdown import Table, table_markdown
-from otmm_qp.output.paths import atomic_open, atomic_write_text
+from otmm_qp.paths import atomic_open, atomic_write_text
 
 ID_COLUMNS = ("experiment", "loop_mode", "controller", "filters", "backend")
 

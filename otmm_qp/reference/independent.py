@@ -12,7 +12,7 @@ sample step is within the limit; the box holds between knots by convexity). The 
 ``−J_pᵀ e_p/(‖e_p‖ tol_p)`` through the interpolation weights. A restricted path class, so
 its merit is an upper bound too: if it beats the reference's ``upper`` by much, the reference
 is not optimal. Dense and slow: for sampled tasks only (``benchmarks/bench_reference.py
---check``, ``tests/test_reference_bracket.py``).
+--check``, ``tests/reference/test_bracket.py``).
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from otmm_qp.output.escape import escape, fill_template
-from otmm_qp.output.paths import atomic_write_bytes
 from otmm_qp.paper import SIGMA_S
+from otmm_qp.paths import atomic_write_bytes
 from otmm_qp.replay.arm_scene import build_arm_scene, geometry_transforms
 from otmm_qp.replay.frames import FramePlan, plan_frames
 from otmm_qp.replay.stored_runs import StoredRun

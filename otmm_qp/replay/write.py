@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from otmm_qp.exceptions import ConfigError, OtmmError
-from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name
 from otmm_qp.output.replays import REPLAY_FOLDER
+from otmm_qp.paths import atomic_write_bytes, ensure_inside, safe_name
 from otmm_qp.replay.stored_runs import StoredRun, discover_runs, group_scenarios, select_runs
 from otmm_qp.robots.robot import Robot
 

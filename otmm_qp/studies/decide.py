@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from otmm_qp.output.paths import atomic_write_text
+from otmm_qp.paths import atomic_write_text
 from otmm_qp.studies import sequential, verdicts
 from otmm_qp.studies.limit_keeping import limit_breaks
 from otmm_qp.studies.rows import task_of

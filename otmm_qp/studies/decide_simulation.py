@@ -12,7 +12,7 @@ it — and the study stops at the first look with a decision. A decision is *fal
 named row's rate is not strictly above every other's.
 
 Used by ``benchmarks/bench_decide.py`` (thousands of studies, the numbers in docs/studies.md)
-and ``tests/test_sequential_decide.py`` (fewer).
+and ``tests/studies/test_sequential.py`` (fewer).
 """
 
 from __future__ import annotations

@@ -144,14 +144,3 @@ def render(
     for g in fronts:
         items += [Heading(3, f"{g.robot} / {g.group}"), "", detail_table(g, mine), ""]
     return to_markdown(items)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Deprecated alias of ``otmm-qp study verdict`` (kept for one release)."""
-    from otmm_qp.cli import deprecated_alias
-
-    return deprecated_alias("otmm_qp.studies.group_verdict", ["study", "verdict"], argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

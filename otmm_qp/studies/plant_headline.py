@@ -48,7 +48,7 @@ from otmm_qp.studies.statistics import (
     paired_test,
 )
 
-__all__ = ["PairedRows", "headline", "limit_cost", "main", "pair_cost", "pair_rows", "plant_rows"]
+__all__ = ["PairedRows", "headline", "limit_cost", "pair_cost", "pair_rows", "plant_rows"]
 
 COLUMNS = [
     "controller", "plant", "robot", "generator", "task_index", "success", "max_error",
@@ -323,14 +323,3 @@ def pair_cost(rows: list[dict[str, Any]], pairs: list[tuple[str, str]]) -> str:
         for pair in pair_rows(by, pairs, pairs)
     ]
     return "\n".join(table_markdown(Table(headers, cells, "lrrrrll"))) + "\n"
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Deprecated alias of ``otmm-qp study plants`` (kept for one release)."""
-    from otmm_qp.cli import deprecated_alias
-
-    return deprecated_alias("otmm_qp.studies.plant_headline", ["study", "plants"], argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

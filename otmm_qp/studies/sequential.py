@@ -151,7 +151,7 @@ def fixed_sample_pick(only: NDArray[np.int64], alpha: float = ALPHA) -> int | No
 
     Valid for one look only; at a look after every batch its false-decision rate exceeds
     ``alpha`` (the simulation's baseline). Equal to the former ``decide.decided`` on the
-    same rows (``tests/test_sequential_decide.py``).
+    same rows (``tests/studies/test_sequential.py``).
     """
     only = np.asarray(only, dtype=np.int64)
     rows = only.shape[0]

@@ -35,7 +35,7 @@ import pyarrow.parquet as pq
 
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.output.folders import remove_kind_files
-from otmm_qp.output.paths import atomic_write_bytes, atomic_write_text, ensure_inside
+from otmm_qp.paths import atomic_write_bytes, atomic_write_text, ensure_inside
 from otmm_qp.studies.columns import (
     SCHEMA_VERSION,
     SCHEMA_VERSION_KEY,

@@ -36,7 +36,7 @@ speed is 0 gets the cap :data:`SPEED_FLOOR` (the solver needs a positive one).
 
 ::
 
-    python -m otmm_qp.studies.tradeoff DIR [--group-by generator|kind] [--calm ROW]
+    otmm-qp study tradeoff DIR [--group-by generator|kind] [--calm ROW]
         [--accurate ROW] [--tasks N]
 """
 
@@ -433,14 +433,3 @@ def render(groups: Sequence[GroupTradeoff], floor: float = 0.0) -> str:
         "position-optimal one (orientation free), like the rows'.",
     ]
     return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Deprecated alias of ``otmm-qp study tradeoff`` (kept for one release)."""
-    from otmm_qp.cli import deprecated_alias
-
-    return deprecated_alias("otmm_qp.studies.tradeoff", ["study", "tradeoff"], argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -9,23 +9,17 @@ import pytest
 
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
+from tests.factories import tiny_study
 
-SMALL: dict[str, Any] = {
-    "name": "small",
-    "seed": 5,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 1,
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+SMALL: dict[str, Any] = tiny_study(
+    "small",
+    seed=5,
+    chunk_size=1,
+    generators=[
         {"type": "near_singular", "count": 2, "duration": [1.0, 1.5]},
         {"type": "beyond_reach", "count": 1, "duration": [1.0, 1.5]},
     ],
-    "controllers": [
-        {"name": "pinv", "backend": {"type": "pinv"}},
-        {"name": "dls", "backend": {"type": "dls", "damping": 0.05}},
-    ],
-}
+)
 
 
 @pytest.fixture(scope="session")

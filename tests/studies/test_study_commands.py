@@ -16,8 +16,6 @@ import yaml
 from otmm_qp.cli import main
 from otmm_qp.exceptions import one_line
 from otmm_qp.studies.execute import run_study
-from otmm_qp.studies.group_verdict import main as verdict_alias
-from otmm_qp.studies.plant_headline import main as plants_alias
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import EPISODES
 from tests.studies.conftest import SMALL
@@ -98,19 +96,12 @@ def test_verdict_the_report_and_the_decision_say_the_same_for_the_arm(
         assert markdown.index(line) < markdown.index("## Method")  # the first screen
 
 
-def test_the_old_entry_point_is_an_alias_with_a_notice(
+def test_verdict_without_ours_is_the_trees_one_line_error(
     small_study: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert verdict_alias([str(small_study), "--ours", "dls"]) == 0
-    captured = capsys.readouterr()
-    assert captured.err.strip() == (
-        "otmm-qp: note: python -m otmm_qp.studies.group_verdict is now `otmm-qp study verdict`; "
-        "this alias goes in the next release"
-    )
-    assert "dls" in captured.out
-    assert verdict_alias([str(small_study)]) == 2  # --ours missing: the tree's one-line error
+    assert main(["study", "verdict", str(small_study)]) == 2  # --ours missing
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 2 and err[1].startswith("otmm-qp: error: study verdict: ")
+    assert len(err) == 1 and err[0].startswith("otmm-qp: error: study verdict: ")
 
 
 @pytest.mark.parametrize(
@@ -226,7 +217,6 @@ def test_plants_says_what_it_left_out(
     assert main(["study", "plants", str(out), "--reference", "lag"]) == 0
     err = capsys.readouterr().err
     assert "second copies of an episode" in err and "unreadable or non-Parquet parts" in err
-    assert plants_alias([str(out), "--reference", "lag"]) == 0
 
 
 def test_plain_progress_prints_a_line_per_tenth_or_minute(

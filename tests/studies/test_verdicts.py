@@ -16,7 +16,7 @@ from otmm_qp.studies.verdicts import (
     success_summary,
     task_groups,
 )
-from tests.test_study_report import _synthetic as _row  # the renderer test's rows
+from tests.studies.test_report import _synthetic as _row  # the renderer test's rows
 
 
 def test_the_pick_its_tie_and_the_closest_beaten_row() -> None:

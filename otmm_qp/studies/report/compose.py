@@ -10,7 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from otmm_qp.metrics.table import metric as metric_row
-from otmm_qp.output.paths import atomic_write_text
+from otmm_qp.paths import atomic_write_text
 from otmm_qp.studies.decide import GUARANTEE, judge_rows, kind_sentence
 from otmm_qp.studies.document import Figure, Heading, Item, to_markdown
 from otmm_qp.studies.fronts import GroupFront, counts_sentence, detail_table, summary_table

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from otmm_qp.output.paths import atomic_write_bytes, ensure_inside, safe_name
+from otmm_qp.paths import atomic_write_bytes, ensure_inside, safe_name
 from otmm_qp.studies.columns import number
 from otmm_qp.studies.limit_keeping import limits_clause
 from otmm_qp.studies.oracle import REFERENCE_NAME

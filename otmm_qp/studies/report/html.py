@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from otmm_qp.output.escape import escape
-from otmm_qp.output.paths import ensure_inside
+from otmm_qp.paths import ensure_inside
 from otmm_qp.studies.document import Item, to_html
 from otmm_qp.studies.schema import StudyConfig
 

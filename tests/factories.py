@@ -1,0 +1,181 @@
+"""Shared test configurations: the tiny run and study files the CLI and hostile tests start from.
+
+One factory instead of a copy per test file (qpsolvers' ``tests/problems.py``). ``tiny_run()``
+returns the YAML text of a one-experiment run on the 2-link planar arm tracking a circle from
+its elbow-bent start; the arguments change only what a test is about (its controllers, its
+duration, a plant line, extra experiments). The text keeps one key per line, so a test derives
+a hostile variant with ``str.replace`` on a key (``"dt: 0.02"``, ``"backend: {type: pinv}"``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from typing import Any
+
+import pytest
+
+from otmm_qp.replay.browser import Page, chromium_page, find_chromium
+
+#: The 2-link planar arm [m] (reach 1.8 m; singular where the elbow is straight).
+PLANAR = "{type: planar, link_lengths: [1.0, 0.8]}"
+#: Its start [rad]: on the circle below, elbow bent.
+Q0 = "[0.927, -2.5]"
+
+#: Controller items (the text after ``- `` in a ``controllers:`` list).
+OTMM_PINV = "name: OTMM\nfilters: [{type: otmm, sigma_s: 0.05, p: linear}]\nbackend: {type: pinv}"
+PINV = "{name: pinv, backend: {type: pinv}}"
+DLS = "{name: dls, backend: {type: dls, damping: 0.05}}"
+#: The same two, one key per line.
+PINV_ITEM = "name: pinv\nbackend: {type: pinv}"
+DLS_ITEM = "name: dls\nbackend: {type: dls, damping: 0.05}"
+
+
+def controller_items(items: Sequence[str], indent: int = 6) -> str:
+    """A YAML list of ``items``, each ``- item`` at ``indent`` spaces (a multi-line item's
+    further lines two more), one line per key."""
+    lines = []
+    for item in items:
+        first, *rest = item.split("\n")
+        lines.append(" " * indent + "- " + first)
+        lines.extend(" " * (indent + 2) + line for line in rest)
+    return "\n".join(lines) + "\n"
+
+
+def experiment(
+    controllers: Sequence[str] = (OTMM_PINV,),
+    *,
+    name: str = "A",
+    duration: float = 0.4,
+    radius: float = 0.6,
+    period: float = 10.0,
+    extra: str = "",
+) -> str:
+    """One experiment item: the planar arm from :data:`Q0` tracking a circle of ``radius`` [m]
+    centred at (1.2, 0) m in ``period`` [s] for ``duration`` [s]; ``extra`` is inserted (indented
+    by the caller) before ``controllers:``."""
+    return (
+        f"  - name: {name}\n"
+        f"    robot: {PLANAR}\n"
+        f"    q0: {Q0}\n"
+        "    trajectory: {type: circle, centre: [1.2, 0.0], "
+        f"radius: {radius}, period: {period}}}\n"
+        f"    duration: {duration}\n"
+        f"{extra}"
+        "    controllers:\n"
+        f"{controller_items(controllers)}"
+    )
+
+
+def tiny_run(
+    controllers: Sequence[str] = (OTMM_PINV,),
+    *,
+    name: str = "tiny",
+    dt: float = 0.02,
+    experiment_name: str = "A",
+    duration: float = 0.4,
+    radius: float = 0.6,
+    period: float = 10.0,
+    loop_modes: str = "[clik]",
+    header: str = "",
+    extra: str = "",
+    more: str = "",
+) -> str:
+    """The YAML text of a run ``name`` at ``dt`` [s]: :func:`experiment` ``experiment_name``,
+    then ``more`` (further experiment items); ``header`` holds extra top-level lines."""
+    first = experiment(
+        controllers,
+        name=experiment_name,
+        duration=duration,
+        radius=radius,
+        period=period,
+        extra=extra,
+    )
+    return (
+        f"\nname: {name}\ndt: {dt}\nloop_modes: {loop_modes}\n{header}experiments:\n" + first + more
+    )
+
+
+#: The UR5's wrist-crossing start [rad] and pose-line end (position [m], quaternion x, y, z, w).
+UR5_WRIST_Q0 = "[0.0, -1.2, 1.5, -1.8, 0.3, 0.0]"
+UR5_WRIST_END = "[0.6214, 0.1878, 0.3384]"
+UR5_WRIST_QUATERNION = "[-0.5539, 0.5836, 0.43954, 0.39926]"
+
+
+def ur5_wrist_run(
+    name: str,
+    controllers: Sequence[str],
+    *,
+    motion: float,
+    duration: float | None = None,
+    experiment: str = "wrist",
+) -> str:
+    """The YAML text of a run of the UR5 (6-D pose task, weights 1 m / 0.2 rad) from
+    :data:`UR5_WRIST_Q0` along a pose line through its wrist singularity in ``motion`` [s],
+    held until ``duration`` [s] (default: ``motion``), at dt = 0.01 s."""
+    return (
+        f"name: {name}\n"
+        "dt: 0.01\n"
+        "loop_modes: [clik]\n"
+        "experiments:\n"
+        f"  - name: {experiment}\n"
+        "    robot: {type: pinocchio, name: ur5, task: pose}\n"
+        "    task_weight: [1.0, 1.0, 1.0, 0.2, 0.2, 0.2]\n"
+        f"    q0: {UR5_WRIST_Q0}\n"
+        "    trajectory:\n"
+        "      type: pose_line\n"
+        f"      end: {UR5_WRIST_END}\n"
+        f"      end_quaternion: {UR5_WRIST_QUATERNION}\n"
+        f"      duration: {motion}\n"
+        f"    duration: {motion if duration is None else duration}\n"
+        "    controllers:\n"
+        f"{controller_items(controllers)}"
+    )
+
+
+#: Study rows and robots (dicts, as ``parse_study`` takes them).
+PLANAR2 = {"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}
+PINV_ROW = {"name": "pinv", "backend": {"type": "pinv"}}
+DLS_ROW = {"name": "dls", "backend": {"type": "dls", "damping": 0.05}}
+#: Success criteria of the small studies: 2 cm, 10 rad/s.
+LOOSE_SUCCESS = {"max_position_error": 0.02, "max_joint_speed": 10.0}
+
+
+def tiny_study(
+    name: str,
+    *,
+    seed: int,
+    chunk_size: int,
+    generators: Sequence[Mapping[str, Any]],
+    controllers: Sequence[Mapping[str, Any]] = (PINV_ROW, DLS_ROW),
+    robots: Sequence[Mapping[str, Any]] = (PLANAR2,),
+    **keys: Any,
+) -> dict[str, Any]:
+    """A study dict at dt = 0.05 s with 0.2 s held after each motion; ``keys`` (time_series,
+    reference, success, ...) go between ``chunk_size`` and ``robots``, in the order given."""
+    return {
+        "name": name,
+        "seed": seed,
+        "dt": 0.05,
+        "duration": {"extra": 0.2},
+        "chunk_size": chunk_size,
+        **keys,
+        "robots": [dict(r) for r in robots],
+        "generators": [dict(g) for g in generators],
+        "controllers": [dict(c) for c in controllers],
+    }
+
+
+@contextlib.contextmanager
+def browser_page(width: int, height: int) -> Iterator[Page]:
+    """A headless Chromium page of ``width`` × ``height`` [px]; skipped without Chromium, except
+    in CI (``CI`` set), where its absence fails."""
+    if find_chromium() is None:
+        if os.environ.get("CI"):
+            pytest.fail(
+                "Chromium is required for the browser tests in CI (apt-get install chromium)"
+            )
+        pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
+    with chromium_page(width, height) as page:
+        yield page

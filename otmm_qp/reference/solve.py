@@ -23,7 +23,7 @@ limit:
    with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
    the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
-   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.conic.stalled`)
+   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.trust_region.stalled`)
    or its cap (``polish_iterations`` for the best start, half of it for the others; a task
    the least squares made achievable gets the best start only, with half the cap), within
    the time budget; it stops early once the bracket is closed (``upper − lower ≤ 1e-6
@@ -53,16 +53,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from otmm_qp.exceptions import SolverFailure, TimeBudgetExceeded
 from otmm_qp.reference.bound import LowerBound, lower_bound
 from otmm_qp.reference.chain import UnsupportedChain
 from otmm_qp.reference.conic import ConicEpigraph
-from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
 from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.reference.settings import ReferenceSettings
-from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
+from otmm_qp.reference.sqp import SequentialQP
+from otmm_qp.reference.trust_region import Outcome
 from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -156,7 +157,7 @@ def solve_reference(
     bound = lower_bound(problem)
     pool, warm_merit = _starts(problem, trajectory, candidates)
     message: str | None = None
-    polish = EpigraphOutcome(pool[0].path, pool[0].merit)
+    polish = Outcome(pool[0].path, pool[0].merit)
     try:
         # decided by a known path (a start or a controller's): no solve needs to run
         if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
@@ -286,9 +287,7 @@ def _distinct(pool: list[_Path], count: int, key: str) -> list[_Path]:
     return chosen
 
 
-def _polish(
-    problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float
-) -> EpigraphOutcome:
+def _polish(problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float) -> Outcome:
     """Cone epigraph solve from the best start, then from the next ones until the bracket closes.
 
     The next ones: the next best distinct starts and seeded perturbations of the best;
@@ -307,7 +306,7 @@ def _polish(
         noisy[0] = problem.q0
         starts.append(project_path(noisy, problem.lower, problem.upper, problem.step))
     perturbed = 0 if certified else settings.perturbations
-    outcomes: list[EpigraphOutcome] = []
+    outcomes: list[Outcome] = []
     for index, path in enumerate(starts):
         if time.perf_counter() > deadline:
             break
@@ -319,7 +318,7 @@ def _polish(
         source = "epigraph" if index < len(starts) - perturbed else "perturbed"
         pool.append(_entry(problem, outcome.path, source))
     if not outcomes:
-        return EpigraphOutcome(pool[0].path, pool[0].merit)
+        return Outcome(pool[0].path, pool[0].merit)
     return min(outcomes, key=lambda o: o.merit)
 
 

@@ -189,10 +189,36 @@ def solve_reference(
         certificate=bound.certificate,
     )
     result = summarise(
-        problem, best.path, task_weight, status, warm_merit, message, best.errors, bracket
+        problem,
+        best.path,
+        task_weight,
+        status,
+        warm_merit,
+        message,
+        best.errors,
+        bracket,
+        task_path=task_path(pool),
     )
     result.seconds = time.perf_counter() - tic
     return result, problem
+
+
+#: The starts computed from the task alone (no controller's path among them).
+OWN_STARTS = ("damped_ik", "joint_path")
+
+
+def task_path(pool: Sequence[_Path]) -> FloatArray:
+    """The task's own path: the better of the starts computed from the task alone.
+
+    Those starts: per-sample damped IK and the task's joint path when it has one; the better
+    by ``max_k m_k`` (damped IK on a tie).
+
+    Whether a task passes near a singularity (``reference.near_singular``, the kind *singular
+    crossings*) is judged on it: it does not depend on which controllers' paths the study
+    offers, unlike the path the reference keeps (a controller's, whenever one meets every
+    tolerance).
+    """
+    return min((e for e in pool if e.source in OWN_STARTS), key=lambda e: e.merit).path
 
 
 def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) -> LowerBound:

@@ -298,7 +298,9 @@ class _Hold(WaypointsTrajectory):
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_an_independent_solver_does_not_beat_the_upper_bound_by_5_percent(seed: int) -> None:
-    """SLSQP from the damped-IK start and from a random start: ≤ 5 % below ``upper``."""
+    """SLSQP from the damped-IK start and from a random start: ≤ 5 % below ``upper`` on a task
+    no path meets; an achievable task is decided by its first certificate (``upper ≤ 1``, not
+    sharpened: no verdict depends on it)."""
     rng = np.random.default_rng(seed)
     lengths = rng.uniform(0.4, 1.0, 3)
     limits = [[-2.5, 2.5], [-2.0, 2.4], [-2.2, 2.0]]
@@ -316,7 +318,10 @@ def test_an_independent_solver_does_not_beat_the_upper_bound_by_5_percent(seed: 
     )
     noisy[0] = q0
     other = min(slsqp_upper(problem, damped_ik_path(problem)), slsqp_upper(problem, noisy))
-    assert other >= 0.95 * result.bracket.upper - 1e-9
+    if result.achievable:
+        assert result.bracket.upper <= 1.0 and result.bracket.iterations == 0
+    else:
+        assert other >= 0.95 * result.bracket.upper - 1e-9
     metrics = compute_metrics(as_run(result, problem), MetricSettings())
     assert metrics["max_error"] == pytest.approx(result.max_error)
 

@@ -18,14 +18,14 @@ limit:
 2. **Least squares** from the better of the first two: trust-region Newton with OSQP
    (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
    start.
-3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
-   epigraph SQP
-   with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
+3. **Min-max polish** (only when no path meets every tolerance: an achievable task is
+   decided, and a sharper upper bound would change no label and no success, which on an
+   achievable task is judged by the tolerances): the epigraph SQP with second-order-cone
+   subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
    the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
    (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.trust_region.stalled`)
-   or its cap (``polish_iterations`` for the best start, half of it for the others; a task
-   the least squares made achievable gets the best start only, with half the cap), within
+   or its cap (``polish_iterations`` for the best start, half of it for the others), within
    the time budget; it stops early once the bracket is closed (``upper − lower ≤ 1e-6
    upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
@@ -163,7 +163,7 @@ def solve_reference(
         if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
             start = min(pool[:2], key=lambda entry: entry.merit)
             _least_squares(problem, start, pool, deadline)
-            if min(entry.merit for entry in pool) > SETTLE:
+            if min(entry.merit for entry in pool) > 1.0:  # else decided: achievable
                 polish = _polish(problem, pool, bound.value, deadline)
     except SolverFailure as error:
         message = f"solver failure: {error}"
@@ -324,21 +324,20 @@ def _polish(problem: TrackingProblem, pool: list[_Path], lower: float, deadline:
     """
     settings = problem.settings
     solver = ConicEpigraph(problem)
-    certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
-    starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
+    starts = [e.path for e in _distinct(pool, max(1, settings.starts), "merit")]
     rng = np.random.default_rng(settings.seed)
-    for _ in range(0 if certified else settings.perturbations):
+    for _ in range(settings.perturbations):
         noisy = starts[0] + rng.normal(0.0, PERTURBATION, starts[0].shape)
         noisy[0] = problem.q0
         starts.append(project_path(noisy, problem.lower, problem.upper, problem.step))
-    perturbed = 0 if certified else settings.perturbations
+    perturbed = settings.perturbations
     outcomes: list[Outcome] = []
     for index, path in enumerate(starts):
         if time.perf_counter() > deadline:
             break
         if outcomes and _closed(min(o.merit for o in outcomes), lower):
             break  # certified optimal to GAP_TOLERANCE: another start cannot do better
-        cap = settings.polish_iterations // (2 if index > 0 or certified else 1)
+        cap = settings.polish_iterations // (2 if index > 0 else 1)
         outcome = solver.solve(path, cap, deadline)
         outcomes.append(outcome)
         source = "epigraph" if index < len(starts) - perturbed else "perturbed"

@@ -36,7 +36,8 @@ limit:
 5. **Position optimum** (the one reference of claims about *position* error:
    oracle-relative error, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
-   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
+   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance
+   and more than ``POSITION_GAP`` (1 %) above its certified lower bound.
    Position tasks: the same path as the upper bound.
 
 Label: ``achievable`` (a stored path meets every tolerance), ``unachievable`` (the lower
@@ -77,6 +78,9 @@ SETTLE = 1e-2
 WEIGHT_FLOOR = 1e-6
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
+#: Relative width ``(value − lower)/lower`` of the position optimum's certified bracket below
+#: which it is not polished [-] (oracle-relative errors move by at most this fraction of it).
+POSITION_GAP = 1e-2
 #: Samples of an undecided task the per-sample branch and bound is tried on.
 SEARCH_SAMPLES = 2
 #: Boxes per sample of that search (a count, so the bound does not depend on the machine).
@@ -355,13 +359,20 @@ def _closed(upper: float, lower: float) -> bool:
 def _position_optimum(
     problem: TrackingProblem, pool: list[_Path], bound: LowerBound, deadline: float
 ) -> tuple[float, float]:
-    """Smallest largest position error [m] over the pool, polished on position alone."""
+    """Smallest largest position error [m] over the pool, polished on position alone.
+
+    Not polished where no claim needs it: at or below the position tolerance, or when the
+    certified bracket is already within :data:`POSITION_GAP` (``value ≤ (1 + gap) ·
+    position_lower``: the polish could gain at most that fraction).
+    """
     best = min(pool, key=lambda entry: entry.position)
     value = best.position
     settings = problem.settings
     tolerance = settings.position_tolerance
     alone = problem.pose and settings.orientation_tolerance is not None
     if not alone or problem.samples < 2 or tolerance is None or value <= tolerance:
+        return value, bound.position_value
+    if value <= (1.0 + POSITION_GAP) * bound.position_value:
         return value, bound.position_value
     if time.perf_counter() > deadline:
         return value, bound.position_value

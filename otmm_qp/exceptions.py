@@ -359,3 +359,15 @@ class NonFiniteState(OtmmError):
     def __init__(self, quantity: str, detail: str) -> None:
         self.quantity = quantity
         super().__init__(f"{quantity}: {detail}")
+
+
+class SolverFailure(OtmmError):
+    """A solver of the offline reference refused or failed a subproblem (OSQP, Clarabel).
+
+    Caught by :func:`~otmm_qp.reference.solve.solve_reference`, which carries it as the
+    reference's ``failed`` state (its message in the row's ``reference.message``).
+    """
+
+
+class TimeBudgetExceeded(OtmmError):
+    """An offline-reference solve ran past its time budget (its best path so far is kept)."""

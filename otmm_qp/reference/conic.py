@@ -1,8 +1,9 @@
 r"""The min-max solve with second-order-cone subproblems: the norm kept exact, the error linearised.
 
-Same problem as :mod:`otmm_qp.reference.epigraph` (``min t + ε ℓ̄`` s.t. every sample's
-``m_{k,p} = ‖e_{k,p}‖/tol_p ≤ t``, the limits as constraints), but each iteration linearises
-the *error* ``e_{k,p}(q_k + δ_k) ≈ e_{k,p} − J_{k,p} δ_k`` (Gauss–Newton) instead of its norm:
+The min-max problem in epigraph form (:mod:`otmm_qp.reference.solve`): ``min t + ε ℓ̄`` s.t.
+every sample's ``m_{k,p} = ‖e_{k,p}‖/tol_p ≤ t``, the limits as constraints. Each iteration
+linearises the *error* ``e_{k,p}(q_k + δ_k) ≈ e_{k,p} − J_{k,p} δ_k`` (Gauss–Newton), not
+its norm:
 
 .. math::
     \min_{\delta, t}\; t + \varepsilon(\bar\ell + \bar g^\top\delta) + \tfrac12 \delta^\top B\delta
@@ -12,8 +13,9 @@ the *error* ``e_{k,p}(q_k + δ_k) ≈ e_{k,p} − J_{k,p} δ_k`` (Gauss–Newton
 
 (``B = ε ∇²ℓ̄_GN + μI``), a second-order cone program solved by Clarabel. The norm's kink at
 ``e = 0`` and its curvature ``1/‖e‖`` are in the model exactly, so the model stays good where
-the errors are small (the linearised-norm model of :class:`EpigraphSQP` predicts ``t = 0`` one
-step away there and its steps are rejected until the trust radius is tiny). Steps are kept by
+the errors are small (a linearised-norm model, the retired ``EpigraphSQP``, predicts
+``t = 0`` one step away there and its steps are rejected until the trust radius is tiny).
+Steps are kept by
 the same ratio test on the true ``φ = max m + ε ℓ̄``, every trial projected onto the limits.
 
 **Convergence test** (stored): the step ``‖δ‖_∞`` [rad] and the KKT residual of the cone
@@ -23,58 +25,42 @@ slacks at that point). Those multipliers are the step's, so they certify ``δ = 
 the step gains nothing either: it stops as converged when ``r ≤`` :data:`KKT_TOLERANCE` *and*
 the model's predicted decrease is ``≤`` :data:`KKT_TOLERANCE`, or ``‖δ‖_∞ ≤``
 :data:`STEP_TOLERANCE`; otherwise when the model predicts no decrease, at the iteration cap or
-the deadline, or when it stalls (:func:`stalled`: the last accepted steps gain less than a
-hundredth of the merit and could not reach the tolerance within the cap).
+the deadline, or when it stalls (:func:`~otmm_qp.reference.trust_region.stalled`: the last
+accepted steps gain less than a hundredth of the merit and could not reach the tolerance
+within the cap). The loop, the ratio test and the radius are the one trust-region driver's
+(:func:`~otmm_qp.reference.trust_region.minimise`); this class is its subproblem, and the
+merit ``φ`` is :class:`~otmm_qp.reference.merit.MinMaxMerit`'s.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import clarabel
 import numpy as np
 import scipy.sparse as sp
 
+from otmm_qp.exceptions import SolverFailure
 from otmm_qp.interrupt import sigint_held
-from otmm_qp.reference.epigraph import (
-    ACCEPTED,
-    INITIAL_RADIUS,
-    KKT_TOLERANCE,
-    MIN_RADIUS,
-    PROXIMAL,
-    QP_TOLERANCE,
-    STEP_TOLERANCE,
-    TIE_BREAK,
-    EpigraphOutcome,
-    EpigraphSQP,
-    trust_region_trial,
-)
+from otmm_qp.reference.merit import TIE_BREAK, MinMaxMerit
 from otmm_qp.reference.problem import BIG, TrackingProblem
-from otmm_qp.reference.sqp import SolverFailure
+from otmm_qp.reference.trust_region import Iterate, Outcome, Radii, Step, Stopping, minimise
 from otmm_qp.robots.robot import FloatArray
 
-#: Accepted steps over which progress is measured for the stall test.
-STALL_WINDOW = 3
-#: Relative gain over that window below which the solve has stalled [-].
-STALL_GAIN = 1e-2
-
-
-def stalled(history: list[float], remaining: int) -> bool:
-    r"""Whether the solve has stalled: too slow to matter for any verdict.
-
-    With ``m_j`` the merit after the ``j``-th accepted step and ``g`` the gain of the last
-    :data:`STALL_WINDOW` of them: ``g < STALL_GAIN · m`` (a crawl), and crawling on at
-    ``g / STALL_WINDOW`` per iteration for the ``remaining`` iterations cannot bring the
-    merit to 1 (the tolerance: the only level a label depends on). A stalled stop is not
-    converged (its convergence test is stored as it stands).
-    """
-    if len(history) <= STALL_WINDOW:
-        return False
-    merit = history[-1]
-    gain = history[-1 - STALL_WINDOW] - merit
-    return gain < STALL_GAIN * merit and merit - gain / STALL_WINDOW * remaining > 1.0
+#: Proximal term μ on every block [merit units/rad²].
+PROXIMAL = 1e-6
+#: Convergence: KKT residual [merit units] and step [rad].
+KKT_TOLERANCE = 1e-4
+STEP_TOLERANCE = 1e-6
+#: Trust radii [rad]: first, largest, smallest.
+RADII = Radii(initial=0.2, largest=2.0, smallest=1e-10)
+#: The stop tests besides the cap (module docstring).
+STOPPING = Stopping(step_tolerance=STEP_TOLERANCE, stall=True)
+#: Clarabel's gap and feasibility tolerances (the KKT test is at 1e-4, every step is checked).
+QP_TOLERANCE = 1e-7
+#: Clarabel statuses whose point is used (every step is checked on the true errors anyway).
+ACCEPTED = ("Solved", "AlmostSolved", "MaxIterations", "MaxTime", "InsufficientProgress")
 
 
 def _settings() -> Any:
@@ -90,14 +76,14 @@ class ConicEpigraph:
     """Epigraph min-max over one task's path with cone subproblems (module docstring).
 
     Args:
-        problem: The task (``N ≥ 2`` samples); its tolerances set the parts as in
-            :class:`~otmm_qp.reference.epigraph.EpigraphSQP`.
+        problem: The task (``N ≥ 2`` samples); its tolerances set the parts
+            (:func:`~otmm_qp.reference.merit.merit_parts`).
     """
 
     def __init__(self, problem: TrackingProblem) -> None:
         self.problem = problem
-        self._merit = EpigraphSQP(problem)  # parts, errors, merits and φ: one definition
-        self.parts = self._merit.parts
+        self.evaluate = MinMaxMerit(problem)  # parts, errors, merits and φ: one definition
+        self.parts = self.evaluate.parts
         self.blocks = problem.samples - 1
         nv = problem.nv
         size = self.blocks * nv
@@ -111,10 +97,8 @@ class ConicEpigraph:
         self._rows_key: tuple[bytes, bytes] | None = None
         self._rows = sp.csr_matrix((0, size + 1))
         self._stacked: tuple[sp.csc_matrix, sp.csc_matrix] | None = None
-
-    def evaluate(self, path: FloatArray) -> tuple[FloatArray, FloatArray, float]:
-        """Errors ``(N, n)``, merits per part ``(N−1, parts)`` and ``φ`` of a path."""
-        return self._merit.evaluate(path)
+        self._at: FloatArray | None = None  # the path of the kept linearisation
+        self._linear_at: tuple[Any, ...] = ()
 
     # ------------------------------------------------------------------ the cone program
     def _linearise(self, path: FloatArray) -> tuple[list[Any], FloatArray, FloatArray]:
@@ -276,59 +260,47 @@ class ConicEpigraph:
             complementarity = max(complementarity, float(np.max(linear)))
         return max(stationarity, complementarity)
 
-    # ------------------------------------------------------------------ driver
-    def solve(self, path: FloatArray, iterations: int, deadline: float) -> EpigraphOutcome:
-        """Iterate from a feasible ``path`` (see the module docstring).
+    # ------------------------------------------------------------------ the subproblem
+    def start(self, path: FloatArray) -> Iterate:
+        """The first iterate (:class:`~otmm_qp.reference.merit.MinMaxMerit`)."""
+        return self.evaluate(path)
+
+    def step(self, iterate: Iterate, radius: float) -> Step:
+        r"""The cone program's step; ``pred = φ − (t + (φ − max m) + ε ḡᵀδ + ½ δᵀBδ)``.
+
+        Stationary (converged) when the KKT residual and the predicted decrease are both
+        ``≤`` :data:`KKT_TOLERANCE` (module docstring).
 
         Raises:
-            SolverFailure: Clarabel failed on a subproblem.
+            SolverFailure: Clarabel failed.
         """
-        problem = self.problem
-        current = path
-        _, merits, phi = self.evaluate(current)
-        top = float(np.max(merits))
-        best = EpigraphOutcome(current, top)
-        radius = INITIAL_RADIUS
-        linear = None
-        history = [top]  # the merit after every accepted step
-        while best.iterations < iterations and time.perf_counter() < deadline:
-            if linear is None:
-                local, tie, hessians = self._linearise(current)
-                linear = (tie, hessians, self._hessian(hessians), self._cones(local))
-            tie, hessians, hessian, cones = linear
-            cost = np.concatenate([tie, [1.0]])
-            lower, upper = self._bounds(current, radius)
-            x, z, a, b, dims = self._solve(hessian, cost, cones, lower, upper)
-            best.iterations += 1
-            delta = x[:-1].reshape(self.blocks, problem.nv)
-            quadratic = 0.5 * float(np.einsum("bi,bij,bj", delta, hessians, delta))
-            model = x[-1] + (phi - top) + float(tie @ x[:-1]) + quadratic
-            predicted = phi - model
-            longest = float(np.max(np.abs(delta)))
-            best.step = longest
-            best.kkt = self._kkt(cost, a, b, z, dims, top)
-            # the multipliers are the step's: they certify δ = 0 only when the model gains
-            # nothing from the step either
-            stationary = best.kkt <= KKT_TOLERANCE and predicted <= KKT_TOLERANCE
-            if stationary or longest <= STEP_TOLERANCE or predicted <= 0.0:
-                best.converged = stationary or longest <= STEP_TOLERANCE
-                break
-            step = trust_region_trial(
-                problem, self.evaluate, current, delta, phi, predicted, radius
-            )
-            radius = step.radius
-            if step.path is None:
-                if radius < MIN_RADIUS:
-                    break
-                continue
-            current, merits, phi = step.path, step.merits, step.phi
-            top = float(np.max(merits))
-            if top < best.merit:
-                best.path, best.merit = current, top
-            linear = None
-            history.append(best.merit)
-            if stalled(history, iterations - best.iterations):
-                break
-        if not math.isfinite(best.merit):
+        if self._at is not iterate.path or not self._linear_at:
+            local, tie, hessians = self._linearise(iterate.path)
+            self._linear_at = (tie, hessians, self._hessian(hessians), self._cones(local))
+            self._at = iterate.path
+        tie, hessians, hessian, cones = self._linear_at
+        phi, top = iterate.phi, iterate.top
+        cost = np.concatenate([tie, [1.0]])
+        lower, upper = self._bounds(iterate.path, radius)
+        x, z, a, b, dims = self._solve(hessian, cost, cones, lower, upper)
+        delta = x[:-1].reshape(self.blocks, self.problem.nv)
+        quadratic = 0.5 * float(np.einsum("bi,bij,bj", delta, hessians, delta))
+        model = x[-1] + (phi - top) + float(tie @ x[:-1]) + quadratic
+        predicted = phi - model
+        kkt = self._kkt(cost, a, b, z, dims, top)
+        # the multipliers are the step's: they certify δ = 0 only when the model gains
+        # nothing from the step either
+        stationary = kkt <= KKT_TOLERANCE and predicted <= KKT_TOLERANCE
+        return Step(delta, float(predicted), kkt, bool(stationary))
+
+    def solve(self, path: FloatArray, iterations: int, deadline: float) -> Outcome:
+        """Iterate from a feasible ``path`` by the trust-region driver (module docstring).
+
+        Raises:
+            SolverFailure: Clarabel failed on a subproblem, or no finite merit was reached.
+        """
+        self._at, self._linear_at = None, ()
+        outcome = minimise(self, path, iterations, deadline, RADII, STOPPING)
+        if not math.isfinite(outcome.merit):
             raise SolverFailure("no finite merit")
-        return best
+        return outcome

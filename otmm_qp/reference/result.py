@@ -10,7 +10,7 @@ import numpy as np
 
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.settings import LIMIT_TOUCH
-from otmm_qp.robots.robot import FloatArray
+from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.simulation.recorder import task_position
 from otmm_qp.simulation.run_result import RunResult
 from otmm_qp.state import KinematicState
@@ -98,8 +98,10 @@ class ReferenceResult:
         sigma: σ_min of the weighted Jacobian along ``path``, shape ``(N,)``.
         weakest: Right singular vector of σ_min along ``path``, shape ``(N, nv)``.
         positions: End-effector position along ``path`` [m], shape ``(N, d)``.
-        min_sigma: Smallest of ``sigma``.
-        near_singular: ``min_sigma < sigma_s``.
+        min_sigma: Smallest σ_min of the weighted Jacobian along the task's own path (the
+            reference's start computed from the task alone, :func:`task_path`), so that it
+            does not depend on which controllers' paths the study offered.
+        near_singular: ``min_sigma < sigma_s``: the task passes near a singularity.
         warm_start_merit: ``max_k m_k`` of the warm start (see ``TrackingProblem.merits``).
         merit: ``max_k m_k`` of ``path`` (≤ ``warm_start_merit``; ≤ 1 when achievable).
         bracket: Upper and lower bounds, the position optimum and the solve's end.
@@ -156,6 +158,13 @@ class ReferenceResult:
         }
 
 
+def sigma_along(robot: Robot, path: FloatArray, weight: FloatArray | None) -> FloatArray:
+    """σ_min of the weighted Jacobian at every sample of ``path`` ``(N, nv)``, shape ``(N,)``."""
+    return np.array(
+        [KinematicState.compute(robot, robot.configuration(q), weight).sigma_min for q in path]
+    )
+
+
 def velocities(path: FloatArray, dt: float) -> FloatArray:
     r"""Joint velocities ``q̇_k = (q_{k+1} − q_k)/dt``, ``q̇_{N−1} = 0``, shape ``(N, nv)``."""
     qdot = np.zeros_like(path)
@@ -172,6 +181,7 @@ def summarise(
     message: str | None = None,
     errors: FloatArray | None = None,
     bracket: Bracket | None = None,
+    task_path: FloatArray | None = None,
 ) -> ReferenceResult:
     """Evaluate a path within the limits: errors, speeds, limit contact and σ_min along it.
 
@@ -185,6 +195,8 @@ def summarise(
         errors: The path's task errors ``(N, n)`` when known (a controller's own record);
             else computed.
         bracket: The bounds (None: the path's own merit, lower bound 0).
+        task_path: The task's own path ``(N, nv)`` on which ``min_sigma`` and
+            ``near_singular`` are judged (None: ``path``).
     """
     robot = problem.robot
     errors = problem.errors(path) if errors is None else np.asarray(errors, dtype=float)
@@ -197,7 +209,8 @@ def summarise(
     finite_hi = np.isfinite(problem.upper)
     near_lo = finite_lo & (path - problem.lower <= LIMIT_TOUCH)
     near_hi = finite_hi & (problem.upper - path <= LIMIT_TOUCH)
-    min_sigma = float(np.min(sigma)) if sigma.size else math.nan
+    own = sigma if task_path is None or task_path is path else sigma_along(robot, task_path, weight)
+    min_sigma = float(np.min(own)) if own.size else math.nan
     merit = float(np.max(problem.merits(errors)))
     max_error = float(np.max(linear))
     if bracket is None:

@@ -35,7 +35,7 @@ class ReferenceSettings:
         minimax_rounds: Lawson re-weighting rounds toward the min-max error (only when the
             least-squares path misses a tolerance).
         polish_iterations: Cap on the epigraph min-max QPs per start
-            (:class:`~otmm_qp.reference.epigraph.EpigraphSQP`; it stops earlier on its
+            (:class:`~otmm_qp.reference.conic.ConicEpigraph`; it stops earlier on its
             convergence test).
         starts: Best distinct starts (damped IK, the task's joint path, controller paths)
             the epigraph solve is run from, when no start meets the tolerances.

@@ -18,14 +18,14 @@ limit:
 2. **Least squares** from the better of the first two: trust-region Newton with OSQP
    (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
    start.
-3. **Min-max polish** (unless a start meets every tolerance to 1 %, ``SETTLE``): the
-   epigraph SQP
-   with second-order-cone subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
+3. **Min-max polish** (only when no path meets every tolerance: an achievable task is
+   decided, and a sharper upper bound would change no label and no success, which on an
+   achievable task is judged by the tolerances): the epigraph SQP with second-order-cone
+   subproblems (:class:`~otmm_qp.reference.conic.ConicEpigraph`:
    the error linearised, its norm exact) from the ``starts`` best distinct
    paths and ``perturbations`` seeded perturbations of the best, each to its convergence test
-   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.conic.stalled`)
-   or its cap (``polish_iterations`` for the best start, half of it for the others; a task
-   the least squares made achievable gets the best start only, with half the cap), within
+   (step and KKT residual, stored), its stall test (:func:`~otmm_qp.reference.trust_region.stalled`)
+   or its cap (``polish_iterations`` for the best start, half of it for the others), within
    the time budget; it stops early once the bracket is closed (``upper − lower ≤ 1e-6
    upper``).
 4. **Upper** = the smallest ``max_k m_k`` of every path above (so no known path within the
@@ -37,7 +37,8 @@ limit:
 5. **Position optimum** (the one reference of claims about *position* error:
    oracle-relative error, trade-off): the smallest
    ``max_k ‖e_pos,k‖`` over every path above, polished by the cone epigraph solve on position alone
-   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance.
+   (orientation free, ``polish_iterations / 2``) when it is above the position tolerance
+   and more than ``POSITION_GAP`` (1 %) above its certified lower bound.
    Position tasks: the same path as the upper bound.
 
 Label: ``achievable`` (a stored path meets every tolerance), ``unachievable`` (the lower
@@ -54,17 +55,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from otmm_qp.exceptions import SolverFailure, TimeBudgetExceeded
 from otmm_qp.reference.bound import LowerBound, lower_bound
 from otmm_qp.reference.chain import UnsupportedChain
 from otmm_qp.reference.conic import ConicEpigraph
 from otmm_qp.reference.coupled_bound import coupled_certificate
-from otmm_qp.reference.epigraph import EpigraphOutcome
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.result import Bracket, ReferenceResult, ReferenceStatus, summarise
 from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.reference.settings import ReferenceSettings
-from otmm_qp.reference.sqp import SequentialQP, SolverFailure, TimeBudgetExceeded
+from otmm_qp.reference.sqp import SequentialQP
+from otmm_qp.reference.trust_region import Outcome
 from otmm_qp.reference.warm_start import damped_ik_path, joint_path_start
 from otmm_qp.robots.robot import FloatArray, Robot
 from otmm_qp.trajectories.trajectory import Trajectory
@@ -78,6 +80,9 @@ SETTLE = 1e-2
 WEIGHT_FLOOR = 1e-6
 #: Relative gap ``(upper − lower)/upper`` below which no further start is tried [-].
 GAP_TOLERANCE = 1e-6
+#: Relative width ``(value − lower)/lower`` of the position optimum's certified bracket below
+#: which it is not polished [-] (oracle-relative errors move by at most this fraction of it).
+POSITION_GAP = 1e-2
 #: Samples of an undecided task the per-sample branch and bound is tried on.
 SEARCH_SAMPLES = 2
 #: Boxes per sample of that search (a count, so the bound does not depend on the machine).
@@ -158,13 +163,13 @@ def solve_reference(
     bound = lower_bound(problem)
     pool, warm_merit = _starts(problem, trajectory, candidates)
     message: str | None = None
-    polish = EpigraphOutcome(pool[0].path, pool[0].merit)
+    polish = Outcome(pool[0].path, pool[0].merit)
     try:
         # decided by a known path (a start or a controller's): no solve needs to run
         if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
             start = min(pool[:2], key=lambda entry: entry.merit)
             _least_squares(problem, start, pool, deadline)
-            if min(entry.merit for entry in pool) > SETTLE:
+            if min(entry.merit for entry in pool) > 1.0:  # else decided: achievable
                 polish = _polish(problem, pool, bound.value, deadline)
     except SolverFailure as error:
         message = f"solver failure: {error}"
@@ -190,10 +195,36 @@ def solve_reference(
         certificate=bound.certificate,
     )
     result = summarise(
-        problem, best.path, task_weight, status, warm_merit, message, best.errors, bracket
+        problem,
+        best.path,
+        task_weight,
+        status,
+        warm_merit,
+        message,
+        best.errors,
+        bracket,
+        task_path=task_path(pool),
     )
     result.seconds = time.perf_counter() - tic
     return result, problem
+
+
+#: The starts computed from the task alone (no controller's path among them).
+OWN_STARTS = ("damped_ik", "joint_path")
+
+
+def task_path(pool: Sequence[_Path]) -> FloatArray:
+    """The task's own path: the better of the starts computed from the task alone.
+
+    Those starts: per-sample damped IK and the task's joint path when it has one; the better
+    by ``max_k m_k`` (damped IK on a tie).
+
+    Whether a task passes near a singularity (``reference.near_singular``, the kind *singular
+    crossings*) is judged on it: it does not depend on which controllers' paths the study
+    offers, unlike the path the reference keeps (a controller's, whenever one meets every
+    tolerance).
+    """
+    return min((e for e in pool if e.source in OWN_STARTS), key=lambda e: e.merit).path
 
 
 def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) -> LowerBound:
@@ -288,9 +319,7 @@ def _distinct(pool: list[_Path], count: int, key: str) -> list[_Path]:
     return chosen
 
 
-def _polish(
-    problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float
-) -> EpigraphOutcome:
+def _polish(problem: TrackingProblem, pool: list[_Path], lower: float, deadline: float) -> Outcome:
     """Cone epigraph solve from the best start, then from the next ones until the bracket closes.
 
     The next ones: the next best distinct starts and seeded perturbations of the best;
@@ -301,27 +330,26 @@ def _polish(
     """
     settings = problem.settings
     solver = ConicEpigraph(problem)
-    certified = min(entry.merit for entry in pool) <= 1.0  # achievable: sharpen the best only
-    starts = [e.path for e in _distinct(pool, 1 if certified else max(1, settings.starts), "merit")]
+    starts = [e.path for e in _distinct(pool, max(1, settings.starts), "merit")]
     rng = np.random.default_rng(settings.seed)
-    for _ in range(0 if certified else settings.perturbations):
+    for _ in range(settings.perturbations):
         noisy = starts[0] + rng.normal(0.0, PERTURBATION, starts[0].shape)
         noisy[0] = problem.q0
         starts.append(project_path(noisy, problem.lower, problem.upper, problem.step))
-    perturbed = 0 if certified else settings.perturbations
-    outcomes: list[EpigraphOutcome] = []
+    perturbed = settings.perturbations
+    outcomes: list[Outcome] = []
     for index, path in enumerate(starts):
         if time.perf_counter() > deadline:
             break
         if outcomes and _closed(min(o.merit for o in outcomes), lower):
             break  # certified optimal to GAP_TOLERANCE: another start cannot do better
-        cap = settings.polish_iterations // (2 if index > 0 or certified else 1)
+        cap = settings.polish_iterations // (2 if index > 0 else 1)
         outcome = solver.solve(path, cap, deadline)
         outcomes.append(outcome)
         source = "epigraph" if index < len(starts) - perturbed else "perturbed"
         pool.append(_entry(problem, outcome.path, source))
     if not outcomes:
-        return EpigraphOutcome(pool[0].path, pool[0].merit)
+        return Outcome(pool[0].path, pool[0].merit)
     return min(outcomes, key=lambda o: o.merit)
 
 
@@ -333,13 +361,20 @@ def _closed(upper: float, lower: float) -> bool:
 def _position_optimum(
     problem: TrackingProblem, pool: list[_Path], bound: LowerBound, deadline: float
 ) -> tuple[float, float]:
-    """Smallest largest position error [m] over the pool, polished on position alone."""
+    """Smallest largest position error [m] over the pool, polished on position alone.
+
+    Not polished where no claim needs it: at or below the position tolerance, or when the
+    certified bracket is already within :data:`POSITION_GAP` (``value ≤ (1 + gap) ·
+    position_lower``: the polish could gain at most that fraction).
+    """
     best = min(pool, key=lambda entry: entry.position)
     value = best.position
     settings = problem.settings
     tolerance = settings.position_tolerance
     alone = problem.pose and settings.orientation_tolerance is not None
     if not alone or problem.samples < 2 or tolerance is None or value <= tolerance:
+        return value, bound.position_value
+    if value <= (1.0 + POSITION_GAP) * bound.position_value:
         return value, bound.position_value
     if time.perf_counter() > deadline:
         return value, bound.position_value

@@ -14,21 +14,21 @@ fixed),
 matrix ``A = [I; D]`` (``D`` the block bidiagonal difference) and the block-diagonal pattern
 of ``P`` never change, so one OSQP workspace is set up per task and only its numbers are
 updated, warm-started from the previous step. A step is accepted when the true weighted
-least squares decreases (ratio test on the model's prediction); ``Δ`` grows after good steps
-and shrinks after bad ones.
+least squares decreases: the ratio test, the radius and the stop tests are the one
+trust-region driver's (:func:`~otmm_qp.reference.trust_region.minimise`); this module is
+its subproblem.
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from otmm_qp.exceptions import SolverFailure
 from otmm_qp.interrupt import solve_held
 from otmm_qp.reference.problem import BIG, TrackingProblem
-from otmm_qp.reference.projection import project_path
+from otmm_qp.reference.trust_region import Iterate, Radii, Step, Stopping, minimise
 from otmm_qp.robots.robot import FloatArray
 
 #: Floor of the Hessian blocks' eigenvalues (relative to 1 + the largest one).
@@ -39,9 +39,8 @@ RELATIVE_DECREASE = 1e-7
 ABSOLUTE_DECREASE = 1e-12
 #: Iterations allowed once a path meets every tolerance (it only sharpens the errors).
 AFTER_CERTIFICATE = 1
-#: Initial and smallest trust radius [rad].
-INITIAL_RADIUS = 0.3
-MIN_RADIUS = 1e-9
+#: Trust radii [rad]: first, largest, smallest.
+RADII = Radii(initial=0.3, largest=4.0, smallest=1e-9)
 #: OSQP settings. Moderate tolerances suffice: every step is checked on the true error.
 #: No polishing (it prints to stdout even when not verbose).
 OSQP_SETTINGS = {
@@ -52,14 +51,6 @@ OSQP_SETTINGS = {
     "polishing": False,
     "warm_starting": True,
 }
-
-
-class SolverFailure(Exception):
-    """OSQP refused or failed a subproblem (carried as the reference's ``failed`` state)."""
-
-
-class TimeBudgetExceeded(Exception):
-    """The solve ran past its time budget."""
 
 
 def _upper_pattern(blocks: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -78,7 +69,7 @@ def _upper_pattern(blocks: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 
 class SequentialQP:
-    """Persistent OSQP workspace for one task's path optimisation.
+    """Persistent OSQP workspace for one task's path optimisation: the least-squares subproblem.
 
     Args:
         problem: The task's tracking problem (``N ≥ 2`` samples).
@@ -95,7 +86,10 @@ class SequentialQP:
         difference = sp.identity(size, format="csc") - sp.eye(size, size, k=-nv, format="csc")
         self.A = sp.vstack([identity, difference], format="csc")
         self.solver: osqp.OSQP | None = None
-        self.radius = INITIAL_RADIUS
+        self.radius = RADII.initial
+        self.weights = np.ones(self.blocks)
+        self._at: FloatArray | None = None  # the path of the model below
+        self._model_at: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     def _model(self, hessians: FloatArray, weights: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Weighted positive-definite blocks ``ω_k [H_k]_+`` ``(N−1, nv, nv)`` and ``P``'s data."""
@@ -106,12 +100,12 @@ class SequentialQP:
         fixed *= weights[:, None, None]
         return fixed, np.asarray(fixed[:, self._rows, self._cols].ravel(), dtype=float)
 
-    def _bounds(self, path: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """QP bounds ``l ≤ Aδ ≤ u`` at ``path`` with the current trust radius."""
+    def _bounds(self, path: FloatArray, radius: float) -> tuple[FloatArray, FloatArray]:
+        """QP bounds ``l ≤ Aδ ≤ u`` at ``path`` with the trust radius ``radius`` [rad]."""
         problem = self.problem
         current = path[1:]
-        box_lo = np.maximum(problem.lower - current, -self.radius)
-        box_hi = np.minimum(problem.upper - current, self.radius)
+        box_lo = np.maximum(problem.lower - current, -radius)
+        box_hi = np.minimum(problem.upper - current, radius)
         moves = np.diff(path, axis=0)  # (N−1, nv): q_k − q_{k−1}
         step = np.minimum(problem.step, BIG)
         rate_lo = -step - moves
@@ -151,6 +145,49 @@ class SequentialQP:
             raise SolverFailure(f"OSQP status {status!r}")
         return np.asarray(result.x, dtype=float)
 
+    # ------------------------------------------------------------------ the subproblem
+    def start(self, path: FloatArray) -> Iterate:
+        """The first iterate; its errors and the model come from one linearisation."""
+        errors, _ = self._linearise(path)
+        merits = self.problem.merits(errors)
+        return Iterate(path, errors, merits, self.problem.objective(errors, self.weights))
+
+    def evaluate(self, path: FloatArray) -> Iterate:
+        r"""``φ`` = the weighted least squares; merits ``m_k`` of every sample ``(N,)``."""
+        errors = self.problem.errors(path)
+        merits = self.problem.merits(errors)
+        return Iterate(path, errors, merits, self.problem.objective(errors, self.weights))
+
+    def _linearise(
+        self, path: FloatArray
+    ) -> tuple[FloatArray, tuple[FloatArray, FloatArray, FloatArray]]:
+        """Errors ``(N, n)`` and the model at ``path`` (kept while the iterate stays there).
+
+        The model: the weighted blocks ``(N−1, nv, nv)``, ``P``'s data and the weighted
+        gradient ``((N−1)·nv,)``.
+        """
+        errors, gradients, hessians = self.problem.linearise(path)
+        blocks, data = self._model(hessians, self.weights)
+        gradient = (self.weights[:, None] * gradients).ravel()
+        self._at, self._model_at = path, (blocks, data, gradient)
+        return errors, self._model_at
+
+    def step(self, iterate: Iterate, radius: float) -> Step:
+        r"""The QP step of the module docstring; ``pred = −(gᵀδ + ½ δᵀ P δ)``.
+
+        Raises:
+            SolverFailure: OSQP failed.
+        """
+        model = self._model_at
+        if self._at is not iterate.path or model is None:
+            _, model = self._linearise(iterate.path)
+        blocks, data, gradient = model
+        lower, upper = self._bounds(iterate.path, radius)
+        delta = self._solve(data, gradient, lower, upper)
+        step = delta.reshape(self.blocks, self.problem.nv)
+        predicted = -(gradient @ delta + 0.5 * float(np.einsum("bi,bij,bj", step, blocks, step)))
+        return Step(step, float(predicted))
+
     def improve(
         self,
         path: FloatArray,
@@ -176,44 +213,15 @@ class SequentialQP:
             SolverFailure: OSQP failed on a subproblem.
             TimeBudgetExceeded: ``deadline`` passed.
         """
-        problem = self.problem
-        current = path
-        errors, gradients, hessians = problem.linearise(current)
-        value = problem.objective(errors, weights)
-        left = iterations
-        while left > 0:
-            left -= 1
-            if time.perf_counter() > deadline:
-                raise TimeBudgetExceeded
-            blocks, data = self._model(hessians, weights)
-            gradient = (weights[:, None] * gradients).ravel()
-            lower, upper = self._bounds(current)
-            delta = self._solve(data, gradient, lower, upper)
-            step = delta.reshape(self.blocks, problem.nv)
-            predicted = -(
-                gradient @ delta + 0.5 * float(np.einsum("bi,bij,bj", step, blocks, step))
-            )
-            if not predicted > RELATIVE_DECREASE * value + ABSOLUTE_DECREASE:
-                break
-            trial = current.copy()
-            trial[1:] += step
-            trial = project_path(trial, problem.lower, problem.upper, problem.step)
-            trial_errors = problem.errors(trial)
-            trial_value = problem.objective(trial_errors, weights)
-            ratio = (value - trial_value) / predicted
-            longest = float(np.max(np.abs(step)))
-            if ratio > 0.1 and trial_value < value:
-                current, value = trial, trial_value
-                merit = float(np.max(problem.merits(trial_errors)))
-                if merit <= settle:
-                    break
-                if settle > 0.0 and merit <= 1.0:
-                    left = min(left, AFTER_CERTIFICATE)
-                if ratio > 0.75 and longest > 0.9 * self.radius:
-                    self.radius = min(2.0 * self.radius, 4.0)
-                errors, gradients, hessians = problem.linearise(current)
-            else:
-                self.radius = 0.25 * min(self.radius, longest)
-                if self.radius < MIN_RADIUS:
-                    break
-        return current
+        self.weights = weights
+        self._at = self._model_at = None
+        stopping = Stopping(
+            relative_decrease=RELATIVE_DECREASE,
+            absolute_decrease=ABSOLUTE_DECREASE,
+            settle=settle,
+            after_certificate=AFTER_CERTIFICATE if settle > 0.0 else None,
+            raise_at_deadline=True,
+        )
+        outcome = minimise(self, path, iterations, deadline, RADII, stopping, self.radius)
+        self.radius = outcome.radius
+        return path if outcome.current is None else outcome.current

@@ -284,7 +284,9 @@ class _Hold(WaypointsTrajectory):
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_an_independent_solver_does_not_beat_the_upper_bound_by_5_percent(seed: int) -> None:
-    """SLSQP from the damped-IK start and from a random start: ≤ 5 % below ``upper``."""
+    """SLSQP from the damped-IK start and from a random start: ≤ 5 % below ``upper`` on a task
+    no path meets; an achievable task is decided by its first certificate (``upper ≤ 1``, not
+    sharpened: no verdict depends on it)."""
     rng = np.random.default_rng(seed)
     lengths = rng.uniform(0.4, 1.0, 3)
     limits = [[-2.5, 2.5], [-2.0, 2.4], [-2.2, 2.0]]
@@ -302,7 +304,10 @@ def test_an_independent_solver_does_not_beat_the_upper_bound_by_5_percent(seed: 
     )
     noisy[0] = q0
     other = min(slsqp_upper(problem, damped_ik_path(problem)), slsqp_upper(problem, noisy))
-    assert other >= 0.95 * result.bracket.upper - 1e-9
+    if result.achievable:
+        assert result.bracket.upper <= 1.0 and result.bracket.iterations == 0
+    else:
+        assert other >= 0.95 * result.bracket.upper - 1e-9
     metrics = compute_metrics(as_run(result, problem), MetricSettings())
     assert metrics["max_error"] == pytest.approx(result.max_error)
 
@@ -355,12 +360,10 @@ def test_a_urdf_whose_limits_leave_no_motion_is_one_line_exit_2(
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_cone_polish_converges_where_the_errors_are_small(ur5_pose: Robot, seed: int) -> None:
     """From a path a little off a reachable one (errors of a few hundredths of a tolerance),
-    the cone subproblems converge (KKT test) within every limit, below the start and no higher
-    than the linearised-norm epigraph solve at the same cap."""
+    the cone subproblems converge (KKT test) within every limit, below the start."""
     import math
 
-    from otmm_qp.reference.conic import ConicEpigraph
-    from otmm_qp.reference.epigraph import KKT_TOLERANCE, EpigraphSQP
+    from otmm_qp.reference.conic import KKT_TOLERANCE, ConicEpigraph
     from otmm_qp.reference.warm_start import joint_path_start
     from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
 
@@ -379,9 +382,7 @@ def test_the_cone_polish_converges_where_the_errors_are_small(ur5_pose: Robot, s
     start = project_path(start, problem.lower, problem.upper, problem.step)
     first = float(np.max(problem.merits(problem.errors(start))[1:]))
     cone = ConicEpigraph(problem).solve(start, 20, math.inf)
-    linear = EpigraphSQP(problem).solve(start, 20, math.inf)
     assert cone.converged and cone.kkt <= KKT_TOLERANCE
     assert problem.limits.keeps(cone.path, problem.errors(cone.path))
     assert cone.merit <= first
-    assert cone.merit <= linear.merit * (1.0 + 1e-9)
     assert cone.merit == pytest.approx(float(np.max(problem.merits(problem.errors(cone.path)))))

@@ -164,7 +164,7 @@ def test_stall_stops_a_crawl_that_cannot_reach_the_tolerance() -> None:
     """The stall test: a crawl (gain < 1e-3 of the merit over 3 accepted steps) stops, unless
     crawling on for the remaining iterations could bring the merit to 1 (a label could move);
     real progress never stops."""
-    from otmm_qp.reference.conic import STALL_GAIN, STALL_WINDOW, stalled
+    from otmm_qp.reference.trust_region import STALL_GAIN, STALL_WINDOW, stalled
 
     crawl = [7.5 - 1e-4 * j for j in range(STALL_WINDOW + 1)]
     assert stalled(crawl, 10)

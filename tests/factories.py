@@ -10,8 +10,12 @@ a hostile variant with ``str.replace`` on a key (``"dt: 0.02"``, ``"backend: {ty
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
+import sys
 from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import pytest
@@ -167,6 +171,29 @@ def tiny_study(
     }
 
 
+def reference_study(
+    name: str,
+    *,
+    seed: int,
+    chunk_size: int,
+    generators: Sequence[Mapping[str, Any]],
+    controllers: Sequence[Mapping[str, Any]] = (PINV_ROW, DLS_ROW),
+    robots: Sequence[Mapping[str, Any]] = (PLANAR2,),
+) -> dict[str, Any]:
+    """:func:`tiny_study` without time series, judged by :data:`LOOSE_SUCCESS`: the reference's
+    study (the oracle on by default)."""
+    return tiny_study(
+        name,
+        seed=seed,
+        chunk_size=chunk_size,
+        time_series={"tasks": 0},
+        success=LOOSE_SUCCESS,
+        generators=generators,
+        controllers=controllers,
+        robots=robots,
+    )
+
+
 @contextlib.contextmanager
 def browser_page(width: int, height: int) -> Iterator[Page]:
     """A headless Chromium page of ``width`` × ``height`` [px]; skipped without Chromium, except
@@ -179,3 +206,48 @@ def browser_page(width: int, height: int) -> Iterator[Page]:
         pytest.skip("Chromium not installed: browser tests skipped (apt-get install chromium)")
     with chromium_page(width, height) as page:
         yield page
+
+
+#: The repository's root (the folder holding ``benchmarks/`` and ``tools/``).
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_script(relative: str) -> ModuleType:
+    """The repository script at ``relative`` (``benchmarks/bench_x.py``, ``tools/x.py``) imported
+    as a module named by its stem (registered in ``sys.modules``, so its dataclasses pickle)."""
+    path = ROOT / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[path.stem] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+#: A value for each old keyword of the schema-change table (``migration.changes.CHANGES``).
+OLD_KEYWORD_EXAMPLES: dict[str, Any] = {
+    "limit_gain": 0.2,
+    "acceleration_limit": 30.0,
+    "singularity_barrier": {"sigma_safe": 0.02},
+    "max_speed": 1.0,
+    "posture_weight": 0.1,
+    "posture_gain": 2.0,
+    "q_nominal": [0.0],
+    "damping_floor": 1e-4,
+    "max_damping": 0.1,
+}
+
+
+def live_processes(field: int, value: int) -> list[int]:
+    """Live (not zombie) process ids whose ``/proc/PID/stat`` field ``field`` after the command
+    name equals ``value`` (1: the parent's id, 2: the process group)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[field]) == value and fields[0] != "Z":
+                found.append(int(entry.name))
+    return found

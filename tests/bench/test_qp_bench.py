@@ -3,23 +3,19 @@
 from __future__ import annotations
 
 import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-SCRIPT = Path(__file__).parents[2] / "benchmarks" / "bench_qp_session.py"
+from tests.factories import ROOT, load_script
+
+SCRIPT = ROOT / "benchmarks" / "bench_qp_session.py"
 
 
 def _script(path: Path) -> ModuleType:
     """The benchmark script at ``path`` imported as a module."""
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[path.stem] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script(str(path.relative_to(ROOT)))
 
 
 def test_bench_qp_session_prints_every_row(capsys: pytest.CaptureFixture[str]) -> None:

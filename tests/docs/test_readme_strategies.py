@@ -11,7 +11,6 @@ named command in ``tools/doc_tables.py`` (about 80 s: the suite no longer re-run
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 from pathlib import Path
 from types import ModuleType
@@ -23,6 +22,7 @@ from otmm_qp.studies.group_verdict import kind_fronts, kind_rows, kinds_table
 from otmm_qp.studies.limit_keeping import limit_breaks
 from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.spec import load_study, plan_study
+from tests.factories import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "configs" / "studies"
@@ -31,11 +31,7 @@ STORED = ROOT / "tests" / "data" / "strategies_readme"  # the study's rows, as t
 
 
 def _doc_tables() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("doc_tables", ROOT / "tools" / "doc_tables.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("tools/doc_tables.py")
 
 
 def _readme_section() -> str:

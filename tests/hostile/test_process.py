@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from otmm_qp.cli import main
 from tests.cli_errors import refusal_text
-from tests.factories import DLS, PINV, tiny_run
+from tests.factories import DLS, PINV, live_processes, tiny_run
 
 ROOT = Path(__file__).resolve().parents[2]
 OTMM_QP = [sys.executable, "-m", "otmm_qp.cli"]
@@ -37,16 +37,7 @@ LONG = tiny_run(
 
 def _children(pid: int) -> list[int]:
     """Live processes whose parent is ``pid`` (from /proc)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[1]) == pid and fields[0] != "Z":
-                found.append(int(entry.name))
-    return found
+    return live_processes(1, pid)
 
 
 def _wait_for(predicate: object, timeout: float) -> bool:

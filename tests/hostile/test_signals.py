@@ -19,6 +19,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from tests.factories import live_processes
+
 ROOT = Path(__file__).resolve().parents[2]
 ITERATIONS = 80  # the code before the fix failed ~46 % of iterations
 
@@ -93,16 +95,7 @@ STUDY = {
 
 def _group_alive(pgid: int) -> list[int]:
     """Live processes of process group ``pgid`` (from /proc)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[2]) == pgid and fields[0] != "Z":
-                found.append(int(entry.name))
-    return found
+    return live_processes(2, pgid)
 
 
 def _wait(predicate: Callable[[], bool], timeout: float) -> bool:

@@ -11,7 +11,6 @@ import ast
 import math
 import re
 import warnings
-from typing import Any
 
 import pytest
 
@@ -19,19 +18,9 @@ from otmm_qp import registry
 from otmm_qp.exceptions import ParameterError, PeerUnavailable, SchemaChangeWarning
 from otmm_qp.migration.changes import CHANGES
 from otmm_qp_controllers.qp.backend import QpBackend
+from tests.factories import OLD_KEYWORD_EXAMPLES
 
-#: A value for each old keyword of the table.
-EXAMPLES: dict[str, Any] = {
-    "limit_gain": 0.2,
-    "acceleration_limit": 30.0,
-    "singularity_barrier": {"sigma_safe": 0.02},
-    "max_speed": 1.0,
-    "posture_weight": 0.1,
-    "posture_gain": 2.0,
-    "q_nominal": [0.0],
-    "damping_floor": 1e-4,
-    "max_damping": 0.1,
-}
+EXAMPLES = OLD_KEYWORD_EXAMPLES  # a value for each old keyword of the table
 GONE = [
     (change.key, kind)
     for change in CHANGES

@@ -23,6 +23,7 @@ from otmm_qp.exceptions import ConfigError
 from otmm_qp.migration import versions
 from otmm_qp.migration.changes import CHANGES, CURRENT_VERSION
 from otmm_qp.studies.spec import load_study, parse_study
+from tests.factories import OLD_KEYWORD_EXAMPLES
 
 check_schema = partial(versions.check_schema, current=CURRENT_SCHEMA)
 migrate = partial(versions.migrate, current=CURRENT_SCHEMA)
@@ -274,19 +275,7 @@ def test_migrate_cli_prints_what_it_changed(
 
 def test_every_change_converts_to_a_block_it_no_longer_concerns() -> None:
     """Each converter removes what its change refuses (no migrate loop, no stale key)."""
-    examples = {
-        "damping": 1e-4,
-        "limit_gain": 0.2,
-        "acceleration_limit": 30.0,
-        "singularity_barrier": {"sigma_safe": 0.02},
-        "max_speed": 1.0,
-        "posture_weight": 0.1,
-        "posture_gain": 2.0,
-        "q_nominal": [0.0],
-        "damping_floor": 1e-4,
-        "max_damping": 0.1,
-        "solver": "direct_daqp",
-    }
+    examples = {"damping": 1e-4, **OLD_KEYWORD_EXAMPLES, "solver": "direct_daqp"}
     for change in CHANGES:
         for kind in change.types:
             block = {"type": kind}

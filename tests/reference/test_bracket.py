@@ -22,16 +22,14 @@ from otmm_qp.studies.rows import RELATIVE_ERROR, load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 from tests.cli_errors import refusal_text
-from tests.factories import LOOSE_SUCCESS, PINV_ROW, tiny_study
+from tests.factories import PINV_ROW, reference_study
 
 DT = 0.02
 
-PLANAR = tiny_study(
+PLANAR = reference_study(
     "bracket-planar",
     seed=1,
     chunk_size=4,
-    time_series={"tasks": 0},
-    success=LOOSE_SUCCESS,
     generators=[
         {"type": "near_singular", "count": 2, "distance": [0.0, 0.1], "duration": [0.8, 1.0]},
         {"type": "beyond_reach", "count": 2, "duration": [0.8, 1.0]},

@@ -2,40 +2,28 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 from typing import Any
 
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
+from tests.factories import load_script, reference_study
 
-STUDY = {
-    "name": "bench-certificates",
-    "seed": 4,
-    "dt": 0.05,
-    "duration": {"extra": 0.2},
-    "chunk_size": 4,
-    "time_series": {"tasks": 0},
-    "success": {"max_position_error": 0.02, "max_joint_speed": 10.0},
-    "robots": [{"name": "planar2", "robot": {"type": "planar", "link_lengths": [1.0, 0.8]}}],
-    "generators": [
+STUDY = reference_study(
+    "bench-certificates",
+    seed=4,
+    chunk_size=4,
+    generators=[
         {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
         {"type": "random_reachable", "count": 1, "duration": [1.0, 1.5]},
     ],
-    "controllers": [{"name": "dls", "backend": {"type": "dls"}}],
-}
+    controllers=[{"name": "dls", "backend": {"type": "dls"}}],
+)
 
 
 def _bench_reference() -> Any:
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location(
-        "bench_reference", root / "benchmarks" / "bench_reference.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/bench_reference.py")
 
 
 def test_stored_certificates_recompute_exactly(tmp_path: Path) -> None:
@@ -55,13 +43,7 @@ def test_stored_certificates_recompute_exactly(tmp_path: Path) -> None:
 
 
 def test_bench_coupled_planar_labels_every_task(capsys: Any) -> None:
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location(
-        "bench_coupled_planar", root / "benchmarks" / "bench_coupled_planar.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("benchmarks/bench_coupled_planar.py")
     assert module.main(["--tasks", "3"]) == 0
     lines = capsys.readouterr().out.splitlines()
     for line in lines[1:3]:  # without / with: the three tasks, each labelled once

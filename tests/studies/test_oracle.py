@@ -12,14 +12,12 @@ from otmm_qp.reference import REFERENCE_COLUMNS
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.storage import read_episodes
-from tests.factories import LOOSE_SUCCESS, tiny_study
+from tests.factories import load_script, reference_study
 
-STUDY = tiny_study(
+STUDY = reference_study(
     "oracle",
     seed=4,
     chunk_size=2,
-    time_series={"tasks": 0},
-    success=LOOSE_SUCCESS,
     generators=[
         {"type": "beyond_reach", "count": 2, "duration": [1.0, 1.5]},
         {"type": "random_reachable", "count": 2, "duration": [1.0, 1.5]},
@@ -200,16 +198,7 @@ def test_bad_budget_is_one_line_exit_2_before_any_compute(
 
 
 def _bench_reference() -> Any:
-    import importlib.util
-
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location(
-        "bench_reference", root / "benchmarks" / "bench_reference.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/bench_reference.py")
 
 
 def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

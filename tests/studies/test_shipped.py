@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
 from otmm_qp.studies.spec import load_study, plan_study
+from tests.factories import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "configs" / "studies"
@@ -48,12 +48,7 @@ def test_planar_study_is_valid() -> None:
 
 
 def test_bench_study_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    spec = importlib.util.spec_from_file_location(
-        "bench_study", ROOT / "benchmarks" / "bench_study.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("benchmarks/bench_study.py")
     out = tmp_path / "bench.json"
     assert (
         module.main(["--tasks", "2", "--config", str(STUDIES / "planar.yaml"), "--json", str(out)])

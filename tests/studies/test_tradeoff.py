@@ -12,14 +12,12 @@ from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.rows import load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.studies.tradeoff import OUTCOMES, bounded_optimum, rebuild_task
-from tests.factories import DLS_ROW, LOOSE_SUCCESS, PINV_ROW, tiny_study
+from tests.factories import DLS_ROW, PINV_ROW, reference_study
 
-STUDY = tiny_study(
+STUDY = reference_study(
     "tradeoff",
     seed=3,
     chunk_size=4,
-    time_series={"tasks": 0},
-    success=LOOSE_SUCCESS,
     generators=[
         {"type": "near_singular", "count": 4, "distance": [0.0, 0.1], "duration": [1.0, 1.5]},
         {"type": "beyond_reach", "count": 3, "duration": [1.0, 1.5]},

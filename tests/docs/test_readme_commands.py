@@ -254,7 +254,12 @@ def _test_functions(path: str) -> frozenset[str]:
 
 
 # The pages the README's long evidence moved to: a mapped command may be named there instead.
-EVIDENCE_PAGES = ("docs/studies.md", "docs/strategies.md", "benchmarks/PERFORMANCE.md")
+EVIDENCE_PAGES = (
+    "docs/studies.md",
+    "docs/study-results.md",
+    "docs/strategies.md",
+    "benchmarks/PERFORMANCE.md",
+)
 
 
 def test_every_readme_command_is_mapped_to_a_test() -> None:
@@ -315,9 +320,9 @@ def test_study_sizes_the_readme_states_are_the_plans() -> None:
     """The sizes written next to the study commands, from the shipped files' plans (no runs).
 
     The plants results moved to docs/plants.md and the planar and arms study results to
-    docs/studies.md: their sentences are checked there.
+    docs/study-results.md: their sentences are checked there.
     """
-    sources = ("README.md", "docs/plants.md", "docs/studies.md")
+    sources = ("README.md", "docs/plants.md", "docs/study-results.md")
     text = " ".join(" ".join((ROOT / s).read_text(encoding="utf-8").split()) for s in sources)
     (p_episodes, p_tasks, p_rows), (a_episodes, a_tasks, a_rows), (l_episodes, l_tasks, l_rows) = (
         _plan_sizes(n) for n in ("planar", "arms", "plants")

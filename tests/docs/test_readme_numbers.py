@@ -1,6 +1,6 @@
 """The planar study's published numbers are what the shipped command produces.
 
-The README summarises the study; the table and its sentences are in docs/studies.md
+The README summarises the study; the table and its sentences are in docs/study-results.md
 ("Measured: the planar study"), read from there (``SOURCE``).
 """
 
@@ -14,7 +14,7 @@ import pytest
 from otmm_qp.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-SOURCE = ROOT / "docs" / "studies.md"  # where the planar study's numbers are published
+SOURCE = ROOT / "docs" / "study-results.md"  # where the planar study's numbers are published
 
 
 def _readme_rows() -> dict[str, list[str]]:

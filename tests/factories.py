@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import os
+import subprocess
 import sys
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
@@ -251,3 +252,17 @@ def live_processes(field: int, value: int) -> list[int]:
             if int(fields[field]) == value and fields[0] != "Z":
                 found.append(int(entry.name))
     return found
+
+
+def run_script(
+    relative: str, *args: str, timeout: float | None = None
+) -> subprocess.CompletedProcess[str]:
+    """The repository script at ``relative`` run by this interpreter with ``args`` (output
+    captured as text, the exit status left to the caller)."""
+    return subprocess.run(
+        [sys.executable, str(ROOT / relative), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import runpy
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +11,7 @@ import pytest
 
 from otmm_qp.cli import main
 from otmm_qp.exceptions import DimensionError, ParameterError, PluginNotFound
+from tests.factories import run_script
 
 ROOT = Path(__file__).parents[2]
 TINY_CONFIG = """
@@ -112,13 +111,8 @@ def test_bench_arm_step_script(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_bench_strategies_runs_tiny() -> None:
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "bench_strategies.py"), "--steps", "20"]
-        + ["--rounds", "1"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
+    done = run_script(
+        "benchmarks/bench_strategies.py", "--steps", "20", "--rounds", "1", timeout=120
     )
     assert done.returncode == 0, done.stderr
     rows = {line.split()[0] for line in done.stdout.splitlines() if line.strip()}
@@ -127,27 +121,16 @@ def test_bench_strategies_runs_tiny() -> None:
 
 def test_bench_instructions_runs_tiny() -> None:
     """The phases of the instruction count run (without valgrind: counting takes minutes)."""
-    script = str(ROOT / "benchmarks" / "bench_instructions.py")
-    done = subprocess.run(
-        [sys.executable, script, "--steps", "10", "--passes", "1", "--no-valgrind"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    script = "benchmarks/bench_instructions.py"
+    done = run_script(script, "--steps", "10", "--passes", "1", "--no-valgrind", timeout=120)
     assert done.returncode == 0, done.stderr
     assert "ran 7 phases x 1 passes x 10 states" in done.stdout
-    refused = subprocess.run(
-        [sys.executable, script, "--steps", "3"], capture_output=True, text=True, check=False
-    )
+    refused = run_script(script, "--steps", "3")
     assert refused.returncode == 2 and "--steps must be >= 10" in refused.stderr
 
 
 def test_bench_reach_runs_one_arm() -> None:
-    script = str(ROOT / "benchmarks" / "bench_reach.py")
-    done = subprocess.run(
-        [sys.executable, script, "ur5"], capture_output=True, text=True, check=False
-    )
+    done = run_script("benchmarks/bench_reach.py", "ur5")
     assert done.returncode == 0, done.stderr
     row = done.stdout.strip().splitlines()[-1].split("|")
     outer, found, offsets = float(row[2]), float(row[3]), float(row[8])
@@ -155,28 +138,15 @@ def test_bench_reach_runs_one_arm() -> None:
 
 
 def test_bench_decide_runs_tiny(tmp_path: Path) -> None:
-    script = str(ROOT / "benchmarks" / "bench_decide.py")
     out = tmp_path / "decide.json"
-    done = subprocess.run(
-        [sys.executable, script, "--studies", "20", "--json", str(out)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    done = run_script("benchmarks/bench_decide.py", "--studies", "20", "--json", str(out))
     assert done.returncode == 0, done.stderr
     assert out.is_file() and "|" in done.stdout
 
 
 def test_stress_signals_runs_once() -> None:
     """One interrupted study and its resume: the stress script's checks pass (exit 0)."""
-    script = str(ROOT / "benchmarks" / "stress_signals.py")
-    done = subprocess.run(
-        [sys.executable, script, "--runs", "1", "--seed", "1"],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=600,
-    )
+    done = run_script("benchmarks/stress_signals.py", "--runs", "1", "--seed", "1", timeout=600)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "baseline --workers 1" in done.stdout
 

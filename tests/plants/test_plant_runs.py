@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import csv
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +12,7 @@ from otmm_qp.cli import main
 from otmm_qp.studies.spec import controller_record, expand_controllers, parse_study
 from otmm_qp.studies.storage import read_episodes
 from tests.cli_errors import refusal_text
-from tests.factories import OTMM_PINV, tiny_run
+from tests.factories import OTMM_PINV, run_script, tiny_run
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -144,14 +142,7 @@ def test_bad_plant_in_a_study_names_it(tmp_path: Path, capsys: pytest.CaptureFix
 
 
 def test_bench_plant_runs_tiny() -> None:
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "bench_plant.py"), "--steps", "10"]
-        + ["--rounds", "1"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = run_script("benchmarks/bench_plant.py", "--steps", "10", "--rounds", "1", timeout=120)
     assert done.returncode == 0, done.stderr
     assert "plant mujoco (2 ms)" in done.stdout and "stage jerk_limit" in done.stdout
 

@@ -22,6 +22,10 @@ Orientation (pose tasks) [rad]: the geodesic distance is bi-invariant, each revo
 turns the frame by at most ``min(θ_{k,i}, π)``, so
 ``‖e_rot‖ ≥ ‖log₃(R*_k R(q_0)ᵀ)‖ − Σ_{revolute} min(θ_{k,i}, π)``.
 
+Pose tasks with both tolerances (Pinocchio arms): the **wrist** bound of :mod:`.wrist` (the
+last joint's origin, carried by the tool, past its own certified reach), a bound of ``m_k``
+itself rather than of one of its parts.
+
 A robot of another kind gets the travel bound only when it is not given, i.e. the exact
 sample-0 error (still a valid bound).
 """
@@ -35,6 +39,7 @@ import numpy as np
 
 from otmm_qp.reference.problem import TrackingProblem
 from otmm_qp.reference.reach import DegenerateReach, certified_reach
+from otmm_qp.reference.wrist import carried_points, wrist_merits
 from otmm_qp.robots.robot import FloatArray, Robot
 
 #: Relative and absolute room [m or rad] taken off every bound against rounding.
@@ -144,7 +149,7 @@ class LowerBound:
         orientation: ``‖e_rot,k‖ ≥ orientation[k]`` [rad], ``(N,)`` (zeros: position task).
         merit: ``m_k ≥ merit[k]`` [tolerances], ``(N,)``.
         kinds: Per sample, which bound gives ``merit[k]``: ``start`` (sample 0), ``reach``,
-            ``travel``, ``turn`` (orientation travel), ``search``
+            ``travel``, ``turn`` (orientation travel), ``wrist`` (:mod:`.wrist`), ``search``
             (:mod:`~otmm_qp.reference.sample_bound`) or ``none`` (0).
     """
 
@@ -228,9 +233,32 @@ def lower_bound(problem: TrackingProblem) -> LowerBound:
         turning = orientation / settings.orientation_tolerance
         kinds = np.where(turning > merit, "turn", kinds)
         merit = np.maximum(merit, turning)
+    wrist = _wrist_term(problem)
+    kinds = np.where(wrist > merit, "wrist", kinds)
+    merit = np.maximum(merit, wrist)
     kinds[0] = "start"
     kinds[merit <= 0.0] = "none"
     return LowerBound(position, orientation, merit, tuple(str(k) for k in kinds))
+
+
+def _wrist_term(problem: TrackingProblem) -> FloatArray:
+    """The wrist bound of every sample (:mod:`.wrist`) [tolerances], shape ``(N,)``.
+
+    0 at sample 0 (its error is exact) and where it does not apply (position tasks, a
+    tolerance missing, no carried point).
+    """
+    settings = problem.settings
+    count = problem.samples
+    position, orientation = settings.position_tolerance, settings.orientation_tolerance
+    if not problem.pose or position is None or orientation is None:
+        return np.zeros(count)
+    wrist = carried_points(problem.robot)
+    if not wrist:
+        return np.zeros(count)
+    targets = np.array([np.asarray(target, dtype=float) for target in problem.targets])
+    merit = wrist_merits(wrist, targets[:, :3, 3], targets[:, :3, :3], position, orientation)
+    merit[0] = 0.0
+    return merit
 
 
 def _target_positions(problem: TrackingProblem) -> FloatArray:

@@ -16,7 +16,7 @@ from otmm_qp.reference.sample_bound import SampleSearch
 from otmm_qp.reference.solve import SEARCH_BOXES
 
 #: Kinds :func:`~otmm_qp.reference.bound.lower_bound` itself gives.
-CLOSED_FORM = ("start", "reach", "travel", "turn")
+CLOSED_FORM = ("start", "reach", "travel", "turn", "wrist")
 
 
 def recompute(problem: TrackingProblem, certificate: str) -> float:

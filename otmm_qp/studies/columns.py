@@ -129,7 +129,7 @@ _REFERENCE = (
         "reference.certificate",
         _S,
         "which bound sets reference.lower at which sample: kind@k "
-        "(reach, travel, turn, start, search; none)",
+        "(reach, travel, turn, wrist, start, search, coupled; none)",
     ),
     ("reference.seconds", _F, "wall-clock time of the reference solve [s]"),
 )

@@ -124,6 +124,20 @@ def test_the_bound_is_never_above_the_merit_of_any_configuration(
     angle = np.arccos(cosine) / ORIENTATION
     merits = np.maximum(position, angle)
     assert bound <= float(np.min(merits)) * (1 + 1e-9) + 1e-9
+    # and the merit of the configuration damped least squares reaches from q_0 (near optimal)
+    target = np.eye(4)
+    target[:3, :3], target[:3, 3] = target_r, target_p
+    lower, upper = joint_box(chain, robot)
+    joints = q[0].copy()
+    for _ in range(40):
+        x, jacobian = robot.kinematics(robot.configuration(joints))
+        error = robot.task_error(target, x) / np.array([POSITION] * 3 + [ORIENTATION] * 3)
+        scaled = np.asarray(jacobian) / np.array([POSITION] * 3 + [ORIENTATION] * 3)[:, None]
+        step = scaled.T @ np.linalg.solve(scaled @ scaled.T + 1e-2 * np.eye(6), error)
+        joints[chain.columns] = np.clip((joints + step)[chain.columns], lower, upper)
+    reached = robot.task_error(target, robot.forward(robot.configuration(joints)))
+    merit = max(np.linalg.norm(reached[:3]) / POSITION, np.linalg.norm(reached[3:]) / ORIENTATION)
+    assert bound <= merit * (1 + 1e-9) + 1e-9
 
 
 class Hold(Trajectory):

@@ -27,15 +27,14 @@ def damped_ik_path(problem: TrackingProblem) -> FloatArray:
     Returns:
         Joint path ``(N, nv)``, ``q_0`` first.
     """
-    robot = problem.robot
     path = np.zeros((problem.samples, problem.nv))
     path[0] = problem.q0
     scale = problem.scale
     for k in range(1, problem.samples):
         q = path[k - 1].copy()
         for _ in range(IK_ITERATIONS):
-            x, jacobian = robot.kinematics(robot.configuration(q))
-            error = scale * robot.task_error(problem.targets[k], x)
+            error, jacobian = problem.kinematics.sample(q, k)
+            error = scale * error
             scaled = scale[:, None] * jacobian
             gram = scaled @ scaled.T
             damping = (RELATIVE_DAMPING**2) * max(float(np.trace(gram)), 1e-12)

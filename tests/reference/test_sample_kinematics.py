@@ -1,0 +1,91 @@
+"""The reference's batched sample kinematics are the per-sample robot calls, bit for bit.
+
+:class:`~otmm_qp.reference.kinematics.SampleKinematics` evaluates the task errors and
+Jacobians of many samples with lean Pinocchio calls (no Jacobian where only errors are asked
+for, the rotations of all samples in one NumPy product). The reference's iterates, and so a
+study's stored references, stay the same only if every number is the one
+``robot.task_error(x_d, robot.kinematics(robot.configuration(q)))`` gives: compared here
+exactly, on random configurations of pose and position arms, and on the arms that take the
+per-sample definition (continuous joints, a planar arm). The Jacobian derivatives are also
+checked against central differences of the Jacobian (the math, not just the old code).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from otmm_qp.reference.kinematics import SampleKinematics
+from otmm_qp.robots.pinocchio_arm import PinocchioArm
+from otmm_qp.robots.planar_arm import PlanarArm
+from otmm_qp.robots.robot import FloatArray, Robot
+
+ROBOTS: dict[str, Callable[[], Robot]] = {
+    "ur5 pose": lambda: PinocchioArm("ur5", task="pose"),
+    "panda position": lambda: PinocchioArm("panda", task="position"),
+    "kinova pose (continuous joints)": lambda: PinocchioArm("kinova", task="pose"),
+    "planar": lambda: PlanarArm([1.0, 0.8, 0.5]),
+}
+
+
+def _samples(robot: Robot, seed: int, count: int) -> tuple[FloatArray, list[FloatArray]]:
+    """Random joint coordinates ``(count, nv)`` inside the limits and targets near them."""
+    rng = np.random.default_rng(seed)
+    lower, upper = robot.position_limits
+    path = rng.uniform(np.maximum(lower, -3.0), np.minimum(upper, 3.0), (count, robot.nv))
+    path[1] = 0.0  # an exactly singular configuration of both arms (stretched wrist)
+    nearby = path + rng.normal(0.0, 0.3, path.shape)
+    targets = [np.asarray(robot.forward(robot.configuration(q))) for q in nearby]
+    return path, targets
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_errors_and_jacobians_are_the_per_sample_calls(name: str) -> None:
+    robot = ROBOTS[name]()
+    path, targets = _samples(robot, 7, 12)
+    kinematics = SampleKinematics(robot, targets)
+    assert kinematics.lean == (isinstance(robot, PinocchioArm) and robot.nq == robot.nv)
+    plain = [robot.kinematics(robot.configuration(q)) for q in path]
+    errors = np.array([robot.task_error(t, x) for t, (x, _) in zip(targets, plain, strict=True)])
+    jacobians = np.array([jacobian for _, jacobian in plain])
+    forward = np.array(
+        [
+            robot.task_error(t, robot.forward(robot.configuration(q)))
+            for t, q in zip(targets, path, strict=True)
+        ]
+    )
+
+    np.testing.assert_array_equal(kinematics.errors(path), forward)
+    np.testing.assert_array_equal(kinematics.errors(path[3:], first=3), forward[3:])
+    both = kinematics.errors_and_jacobians(path[2:], first=2)
+    np.testing.assert_array_equal(both[0], errors[2:])
+    np.testing.assert_array_equal(both[1], jacobians[2:])
+    for k in (0, 1, 5):
+        error, jacobian = kinematics.sample(path[k], k)
+        np.testing.assert_array_equal(error, errors[k])
+        np.testing.assert_array_equal(jacobian, jacobians[k])
+        assert np.all(np.isfinite(error)) and np.all(np.isfinite(jacobian))
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_jacobian_derivatives_are_the_robots_and_its_differences(name: str) -> None:
+    robot = ROBOTS[name]()
+    path, targets = _samples(robot, 3, 3)
+    kinematics = SampleKinematics(robot, targets)
+    unit = np.eye(robot.nv)
+    step = 1e-6
+    for q in path:
+        derivatives = kinematics.jacobian_derivatives(q)
+        configuration = robot.configuration(q)
+        for j in range(robot.nv):
+            np.testing.assert_array_equal(
+                derivatives[j], robot.jacobian_derivative(configuration, unit[j])
+            )
+            ahead = robot.jacobian(robot.configuration(q + step * unit[j]))
+            behind = robot.jacobian(robot.configuration(q - step * unit[j]))
+            # central difference: O(h²) truncation + O(ε/h) rounding, well below 1e-6
+            np.testing.assert_allclose(
+                derivatives[j], (ahead - behind) / (2.0 * step), rtol=0.0, atol=1e-6
+            )

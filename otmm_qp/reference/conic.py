@@ -108,16 +108,12 @@ class ConicEpigraph:
         """Per block: its ``(error, jacobian)``; tie-break gradient ``(B·nv,)``, Hessian blocks."""
         problem = self.problem
         nv, blocks, scale = problem.nv, self.blocks, problem.scale
-        local: list[Any] = []
-        tie = np.zeros((blocks, nv))
-        hessians = np.zeros((blocks, nv, nv))
         errors, jacobians = problem.kinematics.errors_and_jacobians(path[1:], first=1)
-        for b in range(blocks):
-            error, jacobian = errors[b], jacobians[b]
-            scaled_j = scale[:, None] * jacobian
-            tie[b] = -(scaled_j.T @ (scale * error)) * (TIE_BREAK / blocks)
-            hessians[b] = (TIE_BREAK / blocks) * (scaled_j.T @ scaled_j) + PROXIMAL * np.eye(nv)
-            local.append((error, jacobian))
+        scaled = scale[None, :, None] * jacobians  # (B, n, nv)
+        transposed = scaled.transpose(0, 2, 1)
+        tie = -(transposed @ (scale * errors)[:, :, None])[:, :, 0] * (TIE_BREAK / blocks)
+        hessians = (TIE_BREAK / blocks) * (transposed @ scaled) + PROXIMAL * np.eye(nv)
+        local = list(zip(errors, jacobians, strict=True))
         return local, tie.ravel(), hessians
 
     def _cones(self, local: list[Any]) -> tuple[sp.csc_matrix, FloatArray, list[int]]:

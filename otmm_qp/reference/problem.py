@@ -143,19 +143,20 @@ class TrackingProblem:
         robot, nv = self.robot, self.nv
         count = self.samples
         errors = np.zeros((count, robot.task_dim))
-        gradients = np.zeros((count - 1, nv))
-        hessians = np.zeros((count - 1, nv, nv))
         square = self.scale * self.scale
         errors[0] = self.kinematics.errors(path[:1])[0]
         errors[1:], jacobians = self.kinematics.errors_and_jacobians(path[1:], first=1)
+        scaled = self.scale[None, :, None] * jacobians  # (N−1, n, nv)
+        transposed = scaled.transpose(0, 2, 1)
+        residuals = self.scale * errors[1:]
+        gradients = -(transposed @ residuals[:, :, None])[:, :, 0]
+        blocks = transposed @ scaled  # Gauss–Newton part, (N−1, nv, nv)
         for k in range(1, count):
-            error, jacobian = errors[k], jacobians[k - 1]
-            scaled = self.scale[:, None] * jacobian
-            gradients[k - 1] = -scaled.T @ (self.scale * error)
-            block = scaled.T @ scaled
-            if float(np.linalg.norm(self.scale * error)) > CURVATURE_RESIDUAL:
-                pull = square * error
+            if float(np.linalg.norm(residuals[k - 1])) > CURVATURE_RESIDUAL:
+                pull = square * errors[k]
                 derivatives = self.kinematics.jacobian_derivatives(path[k])
-                block = block - np.column_stack([derivatives[j].T @ pull for j in range(nv)])
-            hessians[k - 1] = 0.5 * (block + block.T)
+                blocks[k - 1] = blocks[k - 1] - np.column_stack(
+                    [derivatives[j].T @ pull for j in range(nv)]
+                )
+        hessians = 0.5 * (blocks + blocks.transpose(0, 2, 1))
         return errors, gradients, hessians

@@ -45,6 +45,8 @@ class SampleKinematics:
         self.targets = targets
         self.lean = isinstance(robot, PinocchioArm) and robot.nq == robot.nv
         self.pose = robot.task_dim == 6
+        # its own workspace: the robot's ``data`` (the controllers') is left as it was
+        self._data = robot.model.createData() if self.lean else None  # type: ignore[attr-defined]
         stacked = np.array([np.asarray(t, dtype=float) for t in targets])
         if self.lean and self.pose:
             self._positions = np.ascontiguousarray(stacked[:, :3, 3])  # (N, 3) [m]
@@ -131,7 +133,7 @@ class SampleKinematics:
 
         ``Robot.jacobian_derivative`` along each unit direction ``e_j`` (on a Pinocchio arm:
         ``computeJointJacobiansTimeVariation`` then ``getFrameJacobianTimeVariation``,
-        ``LOCAL_WORLD_ALIGNED``).
+        ``LOCAL_WORLD_ALIGNED``; the frame placements of the other frames are not updated).
         """
         robot = self.robot
         nv = robot.nv
@@ -146,14 +148,14 @@ class SampleKinematics:
         rows = robot.task_dim
         world = pin.LOCAL_WORLD_ALIGNED
         for j in range(nv):
+            # (the frame's placement is recomputed by getFrameJacobianTimeVariation itself)
             pin.computeJointJacobiansTimeVariation(model, data, q, unit[j])
-            pin.updateFramePlacements(model, data)
             out[j] = pin.getFrameJacobianTimeVariation(model, data, frame, world)[:rows]
         return out
 
     def _pinocchio(self) -> tuple[object, object, int]:
         robot = self.robot
-        return robot.model, robot.data, robot.frame_id  # type: ignore[attr-defined]
+        return robot.model, self._data, robot.frame_id  # type: ignore[attr-defined]
 
     def _finish(
         self, translations: FloatArray, rotations: FloatArray | None, first: int

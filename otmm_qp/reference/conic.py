@@ -93,10 +93,8 @@ class ConicEpigraph:
         self.size = size
         # Box and rate rows: C δ with C = [I; D] (D: δ_j − δ_{j−1} per joint).
         eye = sp.identity(size, format="csr")
-        diff = sp.identity(size, format="lil")
-        for j in range(nv, size):
-            diff[j, j - nv] = -1.0
-        self._linear = sp.vstack([eye, diff.tocsr()], format="csr")
+        diff = eye - sp.eye(size, size, k=-nv, format="csr")
+        self._linear = sp.vstack([eye, diff], format="csr")
         self._rows_key: tuple[bytes, bytes] | None = None
         self._rows = sp.csr_matrix((0, size + 1))
         self._stacked: tuple[sp.csc_matrix, sp.csc_matrix] | None = None

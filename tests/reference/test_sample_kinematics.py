@@ -89,3 +89,32 @@ def test_jacobian_derivatives_are_the_robots_and_its_differences(name: str) -> N
             np.testing.assert_allclose(
                 derivatives[j], (ahead - behind) / (2.0 * step), rtol=0.0, atol=1e-6
             )
+
+
+@pytest.mark.parametrize(("links", "duration"), [([1.0, 0.8], 0.04), ([1.0, 0.8, 0.5], 0.3)])
+def test_the_cone_programs_rate_rows_are_the_entry_by_entry_ones(
+    links: list[float], duration: float
+) -> None:
+    """``C = [I; D]`` built by sparse sums is the matrix filled entry by entry (``lil``)."""
+    import scipy.sparse as sp
+
+    from otmm_qp.reference import ReferenceSettings
+    from otmm_qp.reference.conic import ConicEpigraph
+    from otmm_qp.reference.problem import TrackingProblem
+    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+
+    robot = PlanarArm(links)
+    q0 = np.full(robot.nv, 0.3)
+    x0 = robot.forward(q0)
+    trajectory = JointWaypointsTrajectory(x0, robot, [q0.tolist(), (q0 + 0.2).tolist()], duration)
+    problem = TrackingProblem(robot, trajectory, q0, 0.02, duration, ReferenceSettings())
+    solver = ConicEpigraph(problem)
+    size, nv = solver.size, robot.nv
+    diff = sp.identity(size, format="lil")
+    for j in range(nv, size):
+        diff[j, j - nv] = -1.0
+    plain = sp.vstack([sp.identity(size, format="csr"), diff.tocsr()], format="csr")
+    built = solver._linear
+    assert built.has_canonical_format and built.shape == (2 * size, size)
+    for field in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(built, field), getattr(plain, field))

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.robots.robot import FloatArray, Robot
 
 
@@ -55,7 +56,12 @@ class SampleKinematics:
             self._positions = stacked.reshape(len(targets), -1)  # (N, 3) [m]
 
     def errors(self, path: FloatArray, first: int = 0) -> FloatArray:
-        """Task errors of samples ``first .. first + M − 1`` at ``path`` ``(M, nv)``, ``(M, n)``."""
+        """Task errors of samples ``first .. first + M − 1`` at ``path`` ``(M, nv)``, ``(M, n)``.
+
+        Raises:
+            DimensionError: ``path`` is not ``(M, nv)`` with ``first + M ≤ N``.
+        """
+        self._check(path, first)
         if not self.lean:
             robot = self.robot
             return np.array(
@@ -82,7 +88,12 @@ class SampleKinematics:
     def errors_and_jacobians(
         self, path: FloatArray, first: int = 0
     ) -> tuple[FloatArray, FloatArray]:
-        """Errors ``(M, n)`` and Jacobians ``(M, n, nv)`` of samples ``first ..`` at ``path``."""
+        """Errors ``(M, n)`` and Jacobians ``(M, n, nv)`` of samples ``first ..`` at ``path``.
+
+        Raises:
+            DimensionError: ``path`` is not ``(M, nv)`` with ``first + M ≤ N``.
+        """
+        self._check(path, first)
         robot = self.robot
         count = path.shape[0]
         jacobians = np.empty((count, robot.task_dim, robot.nv))
@@ -152,6 +163,12 @@ class SampleKinematics:
             pin.computeJointJacobiansTimeVariation(model, data, q, unit[j])
             out[j] = pin.getFrameJacobianTimeVariation(model, data, frame, world)[:rows]
         return out
+
+    def _check(self, path: FloatArray, first: int) -> None:
+        room = len(self.targets) - first
+        shape = np.shape(path)
+        if len(shape) != 2 or shape[1] != self.robot.nv or not 0 <= shape[0] <= room:
+            raise DimensionError("path", (room, self.robot.nv), shape)
 
     def _pinocchio(self) -> tuple[object, object, int]:
         robot = self.robot

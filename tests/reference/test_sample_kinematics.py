@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.reference.kinematics import SampleKinematics
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
@@ -118,3 +119,14 @@ def test_the_cone_programs_rate_rows_are_the_entry_by_entry_ones(
     assert built.has_canonical_format and built.shape == (2 * size, size)
     for field in ("indptr", "indices", "data"):
         np.testing.assert_array_equal(getattr(built, field), getattr(plain, field))
+
+
+def test_a_path_of_the_wrong_shape_is_named() -> None:
+    robot = ROBOTS["ur5 pose"]()
+    path, targets = _samples(robot, 2, 4)
+    kinematics = SampleKinematics(robot, targets)
+    for wrong, first in ((path[:, :5], 0), (path, 1), (path[0], 0)):
+        with pytest.raises(DimensionError, match="path: expected shape"):
+            kinematics.errors(wrong, first)
+        with pytest.raises(DimensionError, match="path: expected shape"):
+            kinematics.errors_and_jacobians(wrong, first)

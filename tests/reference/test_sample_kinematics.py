@@ -13,6 +13,7 @@ checked against central differences of the Jacobian (the math, not just the old 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -130,3 +131,51 @@ def test_a_path_of_the_wrong_shape_is_named() -> None:
             kinematics.errors(wrong, first)
         with pytest.raises(DimensionError, match="path: expected shape"):
             kinematics.errors_and_jacobians(wrong, first)
+
+
+def _plain_damped_ik(problem: Any) -> FloatArray:
+    """The damped-IK start one robot call at a time, ``np.clip`` for the limits (the former
+    construction)."""
+    from otmm_qp.reference.warm_start import IK_ITERATIONS, RELATIVE_DAMPING
+
+    robot, scale = problem.robot, problem.scale
+    path = np.zeros((problem.samples, problem.nv))
+    path[0] = problem.q0
+    for k in range(1, problem.samples):
+        q = path[k - 1].copy()
+        for _ in range(IK_ITERATIONS):
+            x, jacobian = robot.kinematics(robot.configuration(q))
+            error = scale * robot.task_error(problem.targets[k], x)
+            scaled = scale[:, None] * jacobian
+            gram = scaled @ scaled.T
+            damping = (RELATIVE_DAMPING**2) * max(float(np.trace(gram)), 1e-12)
+            move = scaled.T @ np.linalg.solve(gram + damping * np.eye(gram.shape[0]), error)
+            if not np.all(np.isfinite(move)):
+                break
+            q = q + move
+        step = np.clip(q - path[k - 1], -problem.step, problem.step)
+        path[k] = np.clip(path[k - 1] + step, problem.lower, problem.upper)
+    return path
+
+
+@pytest.mark.parametrize("name", ["ur5 pose", "panda position", "planar"])
+def test_the_damped_ik_start_is_the_plain_one_and_keeps_the_limits(name: str) -> None:
+    from otmm_qp.reference import ReferenceSettings
+    from otmm_qp.reference.problem import TrackingProblem
+    from otmm_qp.reference.warm_start import damped_ik_path
+    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+
+    robot = ROBOTS[name]()
+    rng = np.random.default_rng(5)
+    lower, upper = robot.position_limits
+    q0 = np.clip(rng.uniform(-1.0, 1.0, robot.nv), lower + 0.1, upper - 0.1)
+    knots = q0 + np.cumsum(rng.uniform(-0.8, 0.8, (3, robot.nv)), axis=0)
+    x0 = robot.forward(robot.configuration(q0))
+    trajectory = JointWaypointsTrajectory(x0, robot, np.vstack([q0, knots]).tolist(), duration=0.4)
+    settings = ReferenceSettings(position_tolerance=0.001, speed_limit=1.5)
+    problem = TrackingProblem(robot, trajectory, q0, 0.02, 0.4, settings)
+    path = damped_ik_path(problem)
+    np.testing.assert_array_equal(path, _plain_damped_ik(problem))
+    assert np.all(path >= problem.lower) and np.all(path <= problem.upper)
+    # within the speed limit after rounding (the step is 1e-9 inside it for that)
+    assert np.all(np.abs(np.diff(path, axis=0)) <= problem.speed * problem.dt)

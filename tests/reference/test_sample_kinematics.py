@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from otmm_qp.exceptions import DimensionError
 from otmm_qp.reference.kinematics import SampleKinematics
@@ -179,3 +181,35 @@ def test_the_damped_ik_start_is_the_plain_one_and_keeps_the_limits(name: str) ->
     assert np.all(path >= problem.lower) and np.all(path <= problem.upper)
     # within the speed limit after rounding (the step is 1e-9 inside it for that)
     assert np.all(np.abs(np.diff(path, axis=0)) <= problem.speed * problem.dt)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    samples=st.integers(1, 40),
+    free=st.booleans(),
+)
+def test_the_projection_is_the_plain_one_and_keeps_the_limits(
+    seed: int, samples: int, free: bool
+) -> None:
+    """``project_path`` (the trial paths of every trust-region step) against the plain loop."""
+    from otmm_qp.reference.projection import project_path
+
+    rng = np.random.default_rng(seed)
+    nv = 4
+    lower = -np.abs(rng.normal(1.0, 0.5, nv))
+    upper = np.abs(rng.normal(1.0, 0.5, nv))
+    step = np.abs(rng.normal(0.05, 0.02, nv)) + 1e-3
+    if free:  # a continuous joint: no position limit, no step limit
+        lower[0], upper[0], step[0] = -np.inf, np.inf, np.inf
+    path = np.cumsum(rng.normal(0.0, 0.1, (samples, nv)), axis=0)
+    path[0] = np.clip(path[0], lower, upper)
+    plain = path.copy()
+    for k in range(1, samples):
+        move = np.clip(plain[k] - plain[k - 1], -step, step)
+        plain[k] = np.clip(plain[k - 1] + move, lower, upper)
+    projected = project_path(path, lower, upper, step)
+    np.testing.assert_array_equal(projected, plain)
+    assert np.all(projected >= lower) and np.all(projected <= upper)
+    # each step within its limit up to one rounding of the sum it came from
+    assert np.all(np.abs(np.diff(projected, axis=0)) <= step * (1.0 + 1e-12) + 1e-15)

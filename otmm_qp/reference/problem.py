@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from otmm_qp.reference.kinematics import SampleKinematics
 from otmm_qp.reference.limits import PathLimits
 from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.robots.robot import FloatArray, Robot
@@ -62,6 +63,7 @@ class TrackingProblem:
         self.samples = max(1, int(round(duration / dt)))
         self.times: FloatArray = np.arange(self.samples, dtype=float) * self.dt
         self.targets = [trajectory.sample(float(t))[0] for t in self.times]
+        self.kinematics = SampleKinematics(robot, self.targets)
         n = robot.task_dim
         self.pose = robot.task_kind == "pose"
         self.linear = 3 if self.pose else n
@@ -94,13 +96,9 @@ class TrackingProblem:
 
     def errors(self, path: FloatArray) -> FloatArray:
         """Unscaled task errors ``e(x_d(t_k), f(q_k))``, shape ``(N, n)``."""
-        robot = self.robot
-        return np.array(
-            [
-                robot.task_error(target, robot.forward(robot.configuration(q)))
-                for target, q in zip(self.targets, path, strict=True)
-            ]
-        )
+        if len(path) != self.samples:
+            raise ValueError(f"path: {len(path)} samples, the task has {self.samples}")
+        return self.kinematics.errors(np.asarray(path, dtype=float))
 
     def merits(self, errors: FloatArray) -> FloatArray:
         r"""Per-sample merit ``m_k = max(‖e_pos‖/tol_pos, ‖e_rot‖/tol_rot)``, shape ``(N,)``.
@@ -145,24 +143,20 @@ class TrackingProblem:
         robot, nv = self.robot, self.nv
         count = self.samples
         errors = np.zeros((count, robot.task_dim))
-        gradients = np.zeros((count - 1, nv))
-        hessians = np.zeros((count - 1, nv, nv))
-        unit = np.eye(nv)
         square = self.scale * self.scale
-        for k in range(count):
-            configuration = robot.configuration(path[k])
-            x, jacobian = robot.kinematics(configuration)
-            error = robot.task_error(self.targets[k], x)
-            errors[k] = error
-            if k == 0:
-                continue
-            scaled = self.scale[:, None] * jacobian
-            gradients[k - 1] = -scaled.T @ (self.scale * error)
-            block = scaled.T @ scaled
-            if float(np.linalg.norm(self.scale * error)) > CURVATURE_RESIDUAL:
-                pull = square * error
-                block = block - np.column_stack(
-                    [robot.jacobian_derivative(configuration, unit[j]).T @ pull for j in range(nv)]
+        errors[0] = self.kinematics.errors(path[:1])[0]
+        errors[1:], jacobians = self.kinematics.errors_and_jacobians(path[1:], first=1)
+        scaled = self.scale[None, :, None] * jacobians  # (N−1, n, nv)
+        transposed = scaled.transpose(0, 2, 1)
+        residuals = self.scale * errors[1:]
+        gradients = -(transposed @ residuals[:, :, None])[:, :, 0]
+        blocks = transposed @ scaled  # Gauss–Newton part, (N−1, nv, nv)
+        for k in range(1, count):
+            if float(np.linalg.norm(residuals[k - 1])) > CURVATURE_RESIDUAL:
+                pull = square * errors[k]
+                derivatives = self.kinematics.jacobian_derivatives(path[k])
+                blocks[k - 1] = blocks[k - 1] - np.column_stack(
+                    [derivatives[j].T @ pull for j in range(nv)]
                 )
-            hessians[k - 1] = 0.5 * (block + block.T)
+        hessians = 0.5 * (blocks + blocks.transpose(0, 2, 1))
         return errors, gradients, hessians

@@ -30,7 +30,11 @@ def project_path(
     """
     out = np.array(path, dtype=float, copy=True)
     minimum, maximum = np.minimum, np.maximum  # cheaper than np.clip on short rows
+    back = -step
+    previous = out[0]
     for k in range(1, out.shape[0]):
-        move = minimum(maximum(out[k] - out[k - 1], -step), step)
-        out[k] = minimum(maximum(out[k - 1] + move, lower), upper)
+        row = out[k]
+        move = minimum(maximum(row - previous, back), step)
+        row[:] = minimum(maximum(previous + move, lower), upper)
+        previous = row
     return out

@@ -27,24 +27,29 @@ def damped_ik_path(problem: TrackingProblem) -> FloatArray:
     Returns:
         Joint path ``(N, nv)``, ``q_0`` first.
     """
-    robot = problem.robot
     path = np.zeros((problem.samples, problem.nv))
     path[0] = problem.q0
     scale = problem.scale
+    column = scale[:, None]
+    eye = np.eye(scale.shape[0])
+    factor = RELATIVE_DAMPING**2
+    lower, upper, most = problem.lower, problem.upper, problem.step
+    minimum, maximum = np.minimum, np.maximum  # np.clip's values, cheaper on short rows
     for k in range(1, problem.samples):
-        q = path[k - 1].copy()
+        previous = path[k - 1]
+        q = previous.copy()
         for _ in range(IK_ITERATIONS):
-            x, jacobian = robot.kinematics(robot.configuration(q))
-            error = scale * robot.task_error(problem.targets[k], x)
-            scaled = scale[:, None] * jacobian
+            error, jacobian = problem.kinematics.sample(q, k)
+            error = scale * error
+            scaled = column * jacobian
             gram = scaled @ scaled.T
-            damping = (RELATIVE_DAMPING**2) * max(float(np.trace(gram)), 1e-12)
-            move = scaled.T @ np.linalg.solve(gram + damping * np.eye(gram.shape[0]), error)
-            if not np.all(np.isfinite(move)):
+            damping = factor * max(float(gram.trace()), 1e-12)
+            move = scaled.T @ np.linalg.solve(gram + damping * eye, error)
+            if not np.isfinite(move).all():
                 break
             q = q + move
-        step = np.clip(q - path[k - 1], -problem.step, problem.step)
-        path[k] = np.clip(path[k - 1] + step, problem.lower, problem.upper)
+        step = minimum(maximum(q - previous, -most), most)
+        path[k] = minimum(maximum(previous + step, lower), upper)
     return path
 
 

@@ -169,6 +169,7 @@ def test_every_benchmark_script_and_example_is_tested() -> None:
         "bench_reach.py",
         "bench_decide.py",
         "bench_coupled_planar.py",  # reference/test_certificates.py
+        "profile_reference.py",  # reference/test_profile_script.py
         "stress_signals.py",
     }
     examples = {p.name for p in (ROOT / "examples").iterdir()}

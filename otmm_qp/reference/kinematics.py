@@ -77,12 +77,7 @@ class SampleKinematics:
         for k in range(count):
             pin.forwardKinematics(model, data, path[k])
             placement = pin.updateFramePlacement(model, data, frame)
-            if rotations is None:
-                translations[k] = placement.translation
-            else:
-                homogeneous = placement.homogeneous
-                translations[k] = homogeneous[:3, 3]
-                rotations[k] = homogeneous[:3, :3]
+            _store(placement, k, translations, rotations)
         return self._finish(translations, rotations, first)
 
     def errors_and_jacobians(
@@ -113,12 +108,7 @@ class SampleKinematics:
             pin.forwardKinematics(model, data, q)
             placement = pin.updateFramePlacement(model, data, frame)
             jacobians[k] = pin.computeFrameJacobian(model, data, q, frame, world)[:rows]
-            if rotations is None:
-                translations[k] = placement.translation
-            else:
-                homogeneous = placement.homogeneous
-                translations[k] = homogeneous[:3, 3]
-                rotations[k] = homogeneous[:3, :3]
+            _store(placement, k, translations, rotations)
         return self._finish(translations, rotations, first), jacobians
 
     def sample(self, q: FloatArray, index: int) -> tuple[FloatArray, FloatArray]:
@@ -189,3 +179,15 @@ class SampleKinematics:
         for k in range(count):
             errors[k, 3:] = pin.log3(relative[k])
         return errors
+
+
+def _store(
+    placement: pin.SE3, k: int, translations: FloatArray, rotations: FloatArray | None
+) -> None:
+    """Write a frame placement into row ``k`` of ``translations`` (and ``rotations``)."""
+    if rotations is None:
+        translations[k] = placement.translation
+    else:
+        homogeneous = placement.homogeneous
+        translations[k] = homogeneous[:3, 3]
+        rotations[k] = homogeneous[:3, :3]

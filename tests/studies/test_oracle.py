@@ -215,6 +215,8 @@ def test_bench_reference_runs_tiny(tmp_path: Path, capsys: pytest.CaptureFixture
     assert module.main([*argv, "--out", str(kept)]) == 0
     numbers = json.loads(out.read_text())
     assert numbers["check"]["tasks"] == 1 and numbers["check"]["improved"] in (0, 1)
+    check = numbers["check"]
+    assert 0 <= check["improved_not_achievable"] <= min(check["not_achievable"], check["improved"])
     assert numbers["tasks"] == 3 and numbers["episodes"] == 6
     assert 0.0 < numbers["reference_s"] < numbers["compute_s"]
     assert 0.0 < numbers["reference_share"] < 1.0

@@ -47,6 +47,7 @@ KIND_FILES: dict[str, tuple[str, ...]] = {
         "figures",
         "study_report.html",
         "study_report.md",
+        "certificates",
     ),
     "bench": ("bench.json", "bench.md"),
     "replay": (),

@@ -38,13 +38,12 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from otmm_qp.paths import atomic_write_text
 from otmm_qp.reference.chain import Chain, UnsupportedChain, chain_of
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -130,6 +129,17 @@ def certified_reach(robot: Robot, store: Path | None = None) -> ReachCertificate
     except UnsupportedChain as error:
         raise DegenerateReach(str(error)) from error
     lower, upper = joint_box(chain, robot)
+    return certify(chain, lower, upper, store)
+
+
+def certify(
+    chain: Chain, lower: FloatArray, upper: FloatArray, store: Path | None = None
+) -> ReachCertificate:
+    """:func:`search_reach` of a chain over a box, cached per :func:`model_key`.
+
+    In memory and, given ``store``, in ``store/reach-<key>.json`` (read when present, else
+    written atomically once computed).
+    """
     key = model_key(chain, lower, upper)
     path = store / f"reach-{key}.json" if store is not None else None
     certificate = _memory.get(key)
@@ -155,10 +165,7 @@ def _read(path: Path) -> ReachCertificate | None:
 
 def _write(path: Path, certificate: ReachCertificate) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(dir=path.parent, prefix=".reach-")
-    with os.fdopen(handle, "w") as stream:
-        json.dump(asdict(certificate), stream)
-    os.replace(name, path)
+    atomic_write_text(path, json.dumps(asdict(certificate)))
 
 
 def _fixed_joints(chain: Chain) -> tuple[list[int], float]:

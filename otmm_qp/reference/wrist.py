@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,9 +39,9 @@ from otmm_qp.reference.chain import Chain, UnsupportedChain, chain_of
 from otmm_qp.reference.reach import (
     DegenerateReach,
     ReachCertificate,
+    certify,
     joint_box,
     model_key,
-    search_reach,
 )
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -87,10 +88,11 @@ def shorter_chain(chain: Chain, drop: int) -> Chain:
     )
 
 
-def carried_points(robot: Robot) -> tuple[CarriedPoint, ...]:
+def carried_points(robot: Robot, store: Path | None = None) -> tuple[CarriedPoint, ...]:
     """The origins of the last joint and the one before it, as the frame carries them.
 
-    Cached per model. Empty: no readable chain, a planar arm (no orientation), a chain of one
+    Cached per model (their reach certificates also in ``store``, :func:`~.reach.certify`).
+    Empty: no readable chain, a planar arm (no orientation), a chain of one
     joint; a prismatic last joint (the points slide along it) gives none, a prismatic
     joint before it only the first.
     """
@@ -101,7 +103,7 @@ def carried_points(robot: Robot) -> tuple[CarriedPoint, ...]:
     if chain.size < 2 or chain.dim != 3 or bool(chain.prismatic[-1]):
         return ()
     cache = model_key(chain, *_box(chain, robot))
-    if cache in _memory:
+    if cache in _memory and store is None:
         return _memory[cache]
     tip_rotation, tip_translation = chain.tip[:3, :3], chain.tip[:3, 3]
     axis = tip_rotation.T @ chain.axes[-1]
@@ -121,7 +123,7 @@ def carried_points(robot: Robot) -> tuple[CarriedPoint, ...]:
             lower, upper = joint_box(shorter, robot)
         except DegenerateReach:
             break
-        certificate = search_reach(shorter, lower, upper, model_key(shorter, lower, upper))
+        certificate = certify(shorter, lower, upper, store)
         points.append(
             CarriedPoint(
                 centre=tip_rotation.T @ (along * chain.axes[-1] - tip_translation),

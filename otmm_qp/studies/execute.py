@@ -23,6 +23,7 @@ from typing import Any
 from otmm_qp import interrupt
 from otmm_qp.studies.columns import task_reference
 from otmm_qp.studies.episodes import ChunkResult, WorkUnit, run_chunk
+from otmm_qp.studies.reach_store import store_reaches
 from otmm_qp.studies.scheduler import SchedulerUnreachable, probe_scheduler
 from otmm_qp.studies.spec import StudyPlan
 from otmm_qp.studies.storage import (
@@ -311,6 +312,7 @@ def _run_claimed(
     try:
         with interrupt.handle_stop_signals():  # the one stop-signal path (nested in the CLI's)
             _write_study_marker(out, plan, source, ident)
+            store_reaches(config, out)  # stored with the study, before any episode runs
             chunks = make_chunks(plan, done, stored_references(plan, done, out, ident))
             payload = payload_of(plan)
             writer = PartWriter(out, ident, plan.task_columns)

@@ -18,6 +18,7 @@ from otmm_qp.paths import ensure_inside
 from otmm_qp.reference.reach import DegenerateReach, certified_reach
 from otmm_qp.reference.wrist import carried_points
 from otmm_qp.studies.schema import StudyConfig
+from otmm_qp.studies.storage import StudyDirectoryError
 from otmm_qp.studies.task import BuildCache
 
 #: The study folder's subfolder of certificates.
@@ -35,6 +36,7 @@ def store_reaches(config: StudyConfig, out: Path) -> list[Path]:
 
     Raises:
         OutputPathError: ``out/certificates`` resolves outside ``out`` (a symlink).
+        StudyDirectoryError: It cannot be written (disk full, permissions).
     """
     if not config.reference.enabled:
         return []
@@ -48,7 +50,9 @@ def store_reaches(config: StudyConfig, out: Path) -> list[Path]:
             continue  # the robot's tasks fail with the reason
         try:
             certified_reach(robot, folder)
+            carried_points(robot, folder)
         except DegenerateReach:
             continue
-        carried_points(robot, folder)
+        except OSError as error:
+            raise StudyDirectoryError(str(folder), f"cannot write: {error.strerror}") from None
     return sorted(folder.glob("reach-*.json")) if folder.is_dir() else []

@@ -5,12 +5,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from otmm_qp.reference.reach import certified_reach
 from otmm_qp.reference.wrist import carried_points
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.studies.execute import run_study
 from otmm_qp.studies.reach_store import CERTIFICATES, store_reaches
 from otmm_qp.studies.spec import parse_study, plan_study
+from otmm_qp.studies.storage import StudyDirectoryError
 from tests.factories import reference_study
 
 UR5 = {"name": "ur5", "robot": {"type": "pinocchio", "name": "ur5", "task": "pose"}}
@@ -50,3 +53,9 @@ def test_a_stored_certificate_is_read_not_recomputed(tmp_path: Path) -> None:
     first = store_reaches(config, tmp_path)
     assert first and all(p.parent == tmp_path / CERTIFICATES for p in first)
     assert store_reaches(config, tmp_path) == first
+
+
+def test_an_unwritable_folder_is_one_typed_error(tmp_path: Path) -> None:
+    (tmp_path / CERTIFICATES).write_text("a file where the folder goes")
+    with pytest.raises(StudyDirectoryError, match="cannot write"):
+        store_reaches(parse_study(STUDY), tmp_path)

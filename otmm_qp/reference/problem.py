@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from otmm_qp.exceptions import DimensionError
 from otmm_qp.reference.kinematics import SampleKinematics
 from otmm_qp.reference.limits import PathLimits
 from otmm_qp.reference.settings import ReferenceSettings
@@ -95,9 +96,13 @@ class TrackingProblem:
         return self.robot.nv
 
     def errors(self, path: FloatArray) -> FloatArray:
-        """Unscaled task errors ``e(x_d(t_k), f(q_k))``, shape ``(N, n)``."""
+        """Unscaled task errors ``e(x_d(t_k), f(q_k))``, shape ``(N, n)``.
+
+        Raises:
+            DimensionError: ``path`` is not ``(N, nv)``.
+        """
         if len(path) != self.samples:
-            raise ValueError(f"path: {len(path)} samples, the task has {self.samples}")
+            raise DimensionError("path", (self.samples, self.nv), np.shape(path))
         return self.kinematics.errors(np.asarray(path, dtype=float))
 
     def merits(self, errors: FloatArray) -> FloatArray:

@@ -41,7 +41,6 @@ from otmm_qp.reference.reach import (
     ReachCertificate,
     certify,
     joint_box,
-    model_key,
 )
 from otmm_qp.robots.robot import FloatArray, Robot
 
@@ -49,8 +48,6 @@ from otmm_qp.robots.robot import FloatArray, Robot
 BISECTION = 80
 #: Relative and absolute room taken off the gap [m] and the bound against rounding.
 ROUNDING = 1e-9
-
-_memory: dict[str, tuple[CarriedPoint, ...]] = {}
 
 
 @dataclass(frozen=True)
@@ -91,10 +88,10 @@ def shorter_chain(chain: Chain, drop: int) -> Chain:
 def carried_points(robot: Robot, store: Path | None = None) -> tuple[CarriedPoint, ...]:
     """The origins of the last joint and the one before it, as the frame carries them.
 
-    Cached per model (their reach certificates also in ``store``, :func:`~.reach.certify`).
-    Empty: no readable chain, a planar arm (no orientation), a chain of one
-    joint; a prismatic last joint (the points slide along it) gives none, a prismatic
-    joint before it only the first.
+    Their reach certificates are cached per model by :func:`~.reach.certify` (in memory, and
+    in ``store`` when given), so a call after the first only reads the chain. Empty: no
+    readable chain, a planar arm (no orientation), a chain of one joint; a prismatic last
+    joint (the points slide along it) gives none, a prismatic joint before it only the first.
     """
     try:
         chain = chain_of(robot)
@@ -102,9 +99,6 @@ def carried_points(robot: Robot, store: Path | None = None) -> tuple[CarriedPoin
         return ()
     if chain.size < 2 or chain.dim != 3 or bool(chain.prismatic[-1]):
         return ()
-    cache = model_key(chain, *_box(chain, robot))
-    if cache in _memory and store is None:
-        return _memory[cache]
     tip_rotation, tip_translation = chain.tip[:3, :3], chain.tip[:3, 3]
     axis = tip_rotation.T @ chain.axes[-1]
     points: list[CarriedPoint] = []
@@ -134,16 +128,7 @@ def carried_points(robot: Robot, store: Path | None = None) -> tuple[CarriedPoin
                 certificate=certificate,
             )
         )
-    _memory[cache] = tuple(points)
-    return _memory[cache]
-
-
-def _box(chain: Chain, robot: Robot) -> tuple[FloatArray, FloatArray]:
-    """The chain's joint box, or zeros where a joint has no finite limits (only a key)."""
-    try:
-        return joint_box(chain, robot)
-    except DegenerateReach:
-        return np.zeros(chain.size), np.zeros(chain.size)
+    return tuple(points)
 
 
 def wrist_merits(

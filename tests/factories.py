@@ -19,9 +19,11 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import numpy as np
 import pytest
 
 from otmm_qp.replay.browser import Page, chromium_page, find_chromium
+from otmm_qp.trajectories.trajectory import Trajectory
 
 #: The 2-link planar arm [m] (reach 1.8 m; singular where the elbow is straight).
 PLANAR = "{type: planar, link_lengths: [1.0, 0.8]}"
@@ -266,3 +268,13 @@ def run_script(
         timeout=timeout,
         check=False,
     )
+
+
+class Hold(Trajectory):
+    """A fixed target from t = 0: a point ``(d,)`` [m] or a pose ``(4, 4)``, at rest."""
+
+    def __init__(self, target: np.ndarray) -> None:
+        self.target = np.asarray(target, dtype=float)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.target.copy(), np.zeros(6 if self.target.ndim == 2 else self.target.size)

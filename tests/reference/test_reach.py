@@ -31,8 +31,8 @@ from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
-from otmm_qp.trajectories.trajectory import Trajectory
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
+from tests.factories import Hold
 
 
 def sampled_distances(robot: Robot, count: int, seed: int = 0) -> np.ndarray:
@@ -173,16 +173,6 @@ def test_continuous_joints_are_circles() -> None:
     assert not certificate.converged
     assert float(np.max(sampled_distances(robot, 8_000))) <= certificate.outer
     assert certificate.outer <= robot.reach * (1 + 1e-8) + 1e-8
-
-
-class Hold(Trajectory):
-    """A fixed target from t = 0."""
-
-    def __init__(self, target: np.ndarray) -> None:
-        self.target = np.asarray(target, dtype=float)
-
-    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        return self.target.copy(), np.zeros(6 if self.target.ndim == 2 else self.target.size)
 
 
 def _problem(robot: Robot, target: np.ndarray, q0: np.ndarray, duration: float) -> TrackingProblem:

@@ -25,7 +25,7 @@ from otmm_qp.reference.settings import ReferenceSettings
 from otmm_qp.reference.wrist import carried_points, shorter_chain, wrist_merits
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
-from otmm_qp.trajectories.trajectory import Trajectory
+from tests.factories import Hold
 
 ARMS = ["ur5", "panda", "z1"]  # the Z1: an arm the project ships no config for
 POSITION, ORIENTATION = 0.02, 0.1
@@ -138,16 +138,6 @@ def test_the_bound_is_never_above_the_merit_of_any_configuration(
     reached = robot.task_error(target, robot.forward(robot.configuration(joints)))
     merit = max(np.linalg.norm(reached[:3]) / POSITION, np.linalg.norm(reached[3:]) / ORIENTATION)
     assert bound <= merit * (1 + 1e-9) + 1e-9
-
-
-class Hold(Trajectory):
-    """A fixed target from t = 0."""
-
-    def __init__(self, target: np.ndarray) -> None:
-        self.target = np.asarray(target, dtype=float)
-
-    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        return self.target.copy(), np.zeros(6)
 
 
 def _pointing_out(robot: PinocchioArm, orientation: float | None = ORIENTATION) -> TrackingProblem:

@@ -167,8 +167,7 @@ def solve_reference(
     try:
         # decided by a known path (a start or a controller's): no solve needs to run
         if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
-            start = min(pool[:2], key=lambda entry: entry.merit)
-            _least_squares(problem, start, pool, deadline)
+            _least_squares(problem, _own_best(pool), pool, deadline)
             if min(entry.merit for entry in pool) > 1.0:  # else decided: achievable
                 polish = _polish(problem, pool, bound.value, deadline)
     except SolverFailure as error:
@@ -224,7 +223,12 @@ def task_path(pool: Sequence[_Path]) -> FloatArray:
     offers, unlike the path the reference keeps (a controller's, whenever one meets every
     tolerance).
     """
-    return min((e for e in pool if e.source in OWN_STARTS), key=lambda e: e.merit).path
+    return _own_best(pool).path
+
+
+def _own_best(pool: Sequence[_Path]) -> _Path:
+    """The better of the starts computed from the task alone (damped IK on a tie)."""
+    return min((e for e in pool if e.source in OWN_STARTS), key=lambda e: e.merit)
 
 
 def _search_samples(problem: TrackingProblem, best: _Path, bound: LowerBound) -> LowerBound:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import lapack
 
-from otmm_qp.exceptions import DimensionError, NonFiniteState
+from otmm_qp.exceptions import DimensionError, NonFiniteState, ParameterError
 from otmm_qp.robots.robot import FloatArray, Robot
 
 _unit_weights: dict[int, FloatArray] = {}
@@ -116,18 +117,20 @@ class KinematicState(NamedTuple):
 
     @classmethod
     def compute(
-        cls, robot: Robot, q: FloatArray, weight: FloatArray | None = None
+        cls, robot: Robot, q: FloatArray, weight: FloatArray | Sequence[float] | None = None
     ) -> KinematicState:
         """Evaluate kinematics and the one SVD of this step.
 
         Args:
             robot: The arm.
             q: Configuration, shape ``(nq,)``.
-            weight: Task weight diagonal, shape ``(n,)``; identity when None. (Its values are
+            weight: Task weight diagonal, shape ``(n,)`` (an array, or a sequence read as
+                one); identity when None. (Its values are
                 checked once per run by :func:`~otmm_qp.simulation.simulate.simulate`.)
 
         Raises:
             DimensionError: ``q`` is not of shape ``(nq,)`` or ``weight`` not ``(n,)``.
+            ParameterError: ``weight`` is not numbers.
             NonFiniteState: The Jacobian contains NaN or inf.
         """
         q = np.asarray(q, dtype=float)  # no copy for a float array (the common case)
@@ -142,9 +145,10 @@ class KinematicState(NamedTuple):
                 weight.flags.writeable = False
             task_jacobian = jacobian
         else:
-            if not isinstance(weight, np.ndarray) or weight.shape != (jacobian.shape[0],):
-                shape = np.shape(weight)
-                raise DimensionError("weight", (jacobian.shape[0],), shape)
+            if not isinstance(weight, np.ndarray):
+                weight = _as_weight(weight, jacobian.shape[0])
+            if weight.shape != (jacobian.shape[0],):
+                raise DimensionError("weight", (jacobian.shape[0],), weight.shape)
             task_jacobian = weight[:, None] * jacobian
         U, sigma, Vt = thin_svd(task_jacobian)
         # NaN/inf anywhere in J shows in σ_max (LAPACK propagates it): one scalar check.
@@ -171,3 +175,17 @@ class KinematicState(NamedTuple):
     def weakest_joint_direction(self) -> FloatArray:
         """Right singular vector of σ_min, shape ``(nv,)``: joint motion the task barely sees."""
         return self.Vt[-1]
+
+
+def _as_weight(weight: object, n: int) -> FloatArray:
+    """A task weight given as a sequence, as a float array (the slow path: not an ndarray).
+
+    Raises:
+        ParameterError: It is not a sequence of numbers (names what it got).
+    """
+    try:
+        return np.asarray(weight, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            "weight", f"must be {n} numbers (task weight), got {type(weight).__name__}"
+        ) from None

@@ -11,7 +11,7 @@ from otmm_qp.backends.backend import (
     truncated_pseudoinverse_apply,
 )
 from otmm_qp.controller import Controller
-from otmm_qp.exceptions import NonFiniteState
+from otmm_qp.exceptions import DimensionError, NonFiniteState, ParameterError
 from otmm_qp.filters import OtmmFilter
 from otmm_qp.robots import PlanarArm
 from otmm_qp.state import KinematicState, thin_svd
@@ -35,6 +35,19 @@ def test_weighted_task_space() -> None:
     state = KinematicState.compute(arm, np.array([0.3, 1.0]), weight)
     np.testing.assert_allclose(state.task_jacobian, np.diag(weight) @ state.jacobian)
     np.testing.assert_allclose(state.sigma, np.linalg.svd(np.diag(weight) @ state.jacobian)[1])
+
+
+def test_a_weight_given_as_a_list_is_read_and_a_wrong_one_is_named() -> None:
+    arm = PlanarArm([1.0, 0.8])
+    q = np.array([0.3, 1.0])
+    listed = KinematicState.compute(arm, q, [2.0, 0.5])  # type: ignore[arg-type]
+    np.testing.assert_array_equal(
+        listed.sigma, KinematicState.compute(arm, q, np.array([2.0, 0.5])).sigma
+    )
+    with pytest.raises(DimensionError, match=r"weight: expected shape \(2,\), got \(3,\)"):
+        KinematicState.compute(arm, q, [1.0, 1.0, 1.0])  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="weight.*must be 2 numbers.*got list"):
+        KinematicState.compute(arm, q, [object(), object()])  # type: ignore[arg-type]
 
 
 def test_non_finite_configuration_is_a_typed_error() -> None:

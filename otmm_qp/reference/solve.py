@@ -15,9 +15,10 @@ limit:
    **Decided first**: when a start (a controller's path included) already meets every
    tolerance, the task is ``achievable`` and nothing below is solved (its best start is the
    upper bound).
-2. **Least squares** from the better of the first two: trust-region Newton with OSQP
-   (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as a cheap good
-   start.
+2. **Least squares** from the better of the task's own starts (damped IK, the joint path;
+   never a controller's path, so the order of a study's controllers changes nothing):
+   trust-region Newton with OSQP (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson
+   re-weighting, as a cheap good start.
 3. **Min-max polish** (only when no path meets every tolerance: an achievable task is
    decided, and a sharper upper bound would change no label and no success, which on an
    achievable task is judged by the tolerances): the epigraph SQP with second-order-cone

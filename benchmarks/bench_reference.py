@@ -203,7 +203,8 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
       paired-Wilcoxon accuracy verdict differs (of ``accuracy``);
     * on the ``not_achievable`` tasks of ``base``: how often ``reference.upper`` and the
       position optimum ``reference.max_error`` [m] of ``other`` are more than :data:`MOVED`
-      above the base's (``upper_moved``, ``position_moved``);
+      above the base's (``upper_moved``, ``position_moved``) and below it
+      (``upper_improved``, ``position_improved``);
     * ``relative_shift``: median and largest ``|Δ oracle-relative error|`` [m] over the
       controller rows where both are defined (``relative_rows``);
     * ``unpassed``: per study (``base``, ``other``), tasks no known path passes (neither a
@@ -260,6 +261,11 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
             float(oracle_b[t][column]) > (1.0 + MOVED) * float(oracle_a[t][column]) for t in hard
         )
 
+    def improved(column: str) -> int:
+        return sum(
+            float(oracle_b[t][column]) < (1.0 - MOVED) * float(oracle_a[t][column]) for t in hard
+        )
+
     unpassed = {
         name: sum(
             line.unpassed
@@ -288,6 +294,8 @@ def compare(base: Path, other: Path) -> dict[str, Any]:
         "not_achievable": len(hard),
         "upper_moved": moved("reference.upper"),
         "position_moved": moved("reference.max_error"),
+        "upper_improved": improved("reference.upper"),
+        "position_improved": improved("reference.max_error"),
         "relative_rows": len(shifts),
         "relative_shift_median": statistics.median(shifts) if shifts else 0.0,
         "relative_shift_max": max(shifts, default=0.0),
@@ -303,7 +311,9 @@ def _print_compare(numbers: dict[str, Any], base: Path) -> None:
           f"{numbers['accuracy_changed']} of {numbers['accuracy']}; on the "
           f"{numbers['not_achievable']} tasks not achievable upper / position optimum "
           f"> {100 * MOVED:.0f} % higher on {numbers['upper_moved']} / "
-          f"{numbers['position_moved']}; |Δ oracle-relative error| median "
+          f"{numbers['position_moved']}, > {100 * MOVED:.0f} % lower on "
+          f"{numbers['upper_improved']} / {numbers['position_improved']}; "
+          f"|Δ oracle-relative error| median "
           f"{numbers['relative_shift_median']:.3g} m, largest "
           f"{numbers['relative_shift_max']:.3g} m ({numbers['relative_rows']} rows); tasks no "
           f"known path passes: {numbers['unpassed']['base']} (base) / "

@@ -15,10 +15,12 @@ limit:
    **Decided first**: when a start (a controller's path included) already meets every
    tolerance, the task is ``achievable`` and nothing below is solved (its best start is the
    upper bound).
-2. **Least squares** from the better of the task's own starts (damped IK, the joint path;
-   never a controller's path, so the order of a study's controllers changes nothing):
-   trust-region Newton with OSQP (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson
-   re-weighting, as a cheap good start.
+2. **Least squares** from the better of the task's own starts (damped IK, the joint path),
+   then, unless a path already meets every tolerance, from the best controller path (both by
+   merit, so the order of a study's controllers changes nothing,
+   :func:`_least_squares_starts`): trust-region Newton with OSQP
+   (:class:`~otmm_qp.reference.sqp.SequentialQP`) and Lawson re-weighting, as cheap good
+   starts.
 3. **Min-max polish** (only when no path meets every tolerance: an achievable task is
    decided, and a sharper upper bound would change no label and no success, which on an
    achievable task is judged by the tolerances): the epigraph SQP with second-order-cone
@@ -168,7 +170,10 @@ def solve_reference(
     try:
         # decided by a known path (a start or a controller's): no solve needs to run
         if problem.samples > 1 and min(entry.merit for entry in pool) > 1.0:
-            _least_squares(problem, _own_best(pool), pool, deadline)
+            for start in _least_squares_starts(pool):
+                if min(entry.merit for entry in pool) <= 1.0:
+                    break  # decided: achievable
+                _least_squares(problem, start, pool, deadline)
             if min(entry.merit for entry in pool) > 1.0:  # else decided: achievable
                 polish = _polish(problem, pool, bound.value, deadline)
     except SolverFailure as error:
@@ -225,6 +230,19 @@ def task_path(pool: Sequence[_Path]) -> FloatArray:
     tolerance).
     """
     return _own_best(pool).path
+
+
+def _least_squares_starts(pool: Sequence[_Path]) -> list[_Path]:
+    """The best of the task's own starts, then the best controller path when there is one.
+
+    Both by merit, whatever the order of the candidates (the best of several equal merits: the
+    first in the study's order, which only matters for exactly equal merits).
+    """
+    starts = [_own_best(pool)]
+    known = [e for e in pool if e.source not in OWN_STARTS]
+    if known:
+        starts.append(min(known, key=lambda e: e.merit))
+    return starts
 
 
 def _own_best(pool: Sequence[_Path]) -> _Path:

@@ -246,6 +246,7 @@ def test_bench_reference_compares_two_studies_as_the_report_judges(
     assert same["success_changed"] == same["labels_changed"] == 0
     assert same["groups_changed"] == same["accuracy_changed"] == 0
     assert same["upper_moved"] == same["position_moved"] == 0
+    assert same["upper_improved"] == same["position_improved"] == 0
     assert same["relative_shift_max"] == 0.0
     assert same["accuracy"] >= 1 and same["groups"] >= 3
 
@@ -276,6 +277,9 @@ def test_bench_reference_compares_two_studies_as_the_report_judges(
     # without the solves the pool is a subset of the full one: never a lower upper bound
     assert all(rough_upper[t] >= upper[t] for t in upper)
     assert numbers["upper_moved"] == sum(rough_upper[t] > 1.05 * upper[t] for t in hard)
+    assert numbers["upper_improved"] == 0  # and so never more than 5 % lower
+    reverse = module.compare(rough, study_out)  # the full solve against the rough one
+    assert reverse["upper_improved"] == numbers["upper_moved"]
     assert "success changed on" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         module.main(["--tasks", "3", "--compare", str(study_out)])  # --compare needs --out

@@ -1,10 +1,11 @@
 """The reference does not depend on the order of its candidates (a study's controller order).
 
-The least-squares phase starts from the better of the task's own starts (damped IK, the
-joint path), never from a controller's path: it once took "the better of the first two"
-entries of the pool, which on a task without a joint path was the first admissible
-controller in the config's order, so reordering a study's controllers changed its
-references (21 of 29 random unachievable planar tasks below moved, e.g. 41.43 → 41.34).
+The least-squares phase runs from the best of the task's own starts (damped IK, the joint
+path) and then from the best controller path, both chosen by merit. It once ran from "the
+better of the first two" entries of the pool, which on a task without a joint path was the
+first admissible controller in the config's order, so reordering a study's controllers
+changed its references (21 of 29 random unachievable planar tasks below moved, e.g.
+41.43 → 41.34).
 """
 
 from __future__ import annotations

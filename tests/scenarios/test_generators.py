@@ -9,7 +9,7 @@ from otmm_qp import registry
 from otmm_qp.exceptions import ConfigError
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
-from otmm_qp.scenarios.generator import TaskGenerationError, task_seed
+from otmm_qp.scenarios.generator import Task, TaskGenerationError, task_seed
 from otmm_qp.scenarios.reach import true_reach
 from otmm_qp.scenarios.search import base_position, descend_sigma_min, position_of, sigma_min_at
 from otmm_qp.scenarios.singular import SingularSearch
@@ -140,7 +140,7 @@ def test_bad_parameters_are_config_errors(name: str, params: dict, field: str) -
     assert "\n" not in str(error.value)
 
 
-def _same_task(a, b) -> bool:  # type: ignore[no-untyped-def]
+def _same_task(a: Task, b: Task) -> bool:
     return (
         np.array_equal(a.q0, b.q0)
         and a.descriptors == b.descriptors

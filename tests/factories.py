@@ -278,3 +278,18 @@ class Hold(Trajectory):
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         return self.target.copy(), np.zeros(6 if self.target.ndim == 2 else self.target.size)
+
+
+def joint_waypoints(
+    robot: Any, rng: np.random.Generator, q0: np.ndarray, spread: float, duration: float
+) -> Trajectory:
+    """A joint-waypoint task from ``q0``: three knots, each a uniform ``±spread`` [rad] step on.
+
+    The knots are drawn from ``rng`` after ``q0`` (so a caller's seed gives the same task as
+    before this helper existed).
+    """
+    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+
+    knots = q0 + np.cumsum(rng.uniform(-spread, spread, (3, robot.nv)), axis=0)
+    x0 = robot.forward(robot.configuration(q0))
+    return JointWaypointsTrajectory(x0, robot, np.vstack([q0, knots]).tolist(), duration=duration)

@@ -22,7 +22,7 @@ from otmm_qp.studies.rows import RELATIVE_ERROR, load_rows
 from otmm_qp.studies.spec import parse_study, plan_study
 from otmm_qp.trajectories.waypoints import WaypointsTrajectory
 from tests.cli_errors import refusal_text
-from tests.factories import PINV_ROW, reference_study
+from tests.factories import PINV_ROW, joint_waypoints, reference_study
 
 DT = 0.02
 
@@ -363,14 +363,10 @@ def test_the_cone_polish_converges_where_the_errors_are_small(ur5_pose: Robot, s
 
     from otmm_qp.reference.conic import KKT_TOLERANCE, ConicEpigraph
     from otmm_qp.reference.warm_start import joint_path_start
-    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
 
     rng = np.random.default_rng(seed)
     q0 = rng.uniform(-1.5, 1.5, 6)
-    knots = q0 + np.cumsum(rng.uniform(-0.2, 0.2, (3, 6)), axis=0)
-    x0 = ur5_pose.forward(ur5_pose.configuration(q0))
-    waypoints = np.vstack([q0, knots]).tolist()
-    trajectory = JointWaypointsTrajectory(x0, ur5_pose, waypoints, duration=0.3)
+    trajectory = joint_waypoints(ur5_pose, rng, q0, 0.2, 0.3)
     tight = ReferenceSettings(position_tolerance=0.02, orientation_tolerance=0.1)
     problem = TrackingProblem(ur5_pose, trajectory, q0, DT, 0.3, tight)
     exact = joint_path_start(problem, trajectory)

@@ -19,16 +19,14 @@ from otmm_qp.reference.conic import ConicEpigraph, _settings
 from otmm_qp.reference.problem import BIG, TrackingProblem
 from otmm_qp.reference.warm_start import damped_ik_path
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
-from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+from tests.factories import joint_waypoints
 
 
 def _program(radius: float) -> tuple[Any, ...]:
     robot = PinocchioArm("ur5", task="pose")
     rng = np.random.default_rng(11)
     q0 = rng.uniform(-1.0, 1.0, robot.nv)
-    knots = q0 + np.cumsum(rng.uniform(-0.6, 0.6, (3, robot.nv)), axis=0)
-    x0 = robot.forward(robot.configuration(q0))
-    trajectory = JointWaypointsTrajectory(x0, robot, np.vstack([q0, knots]).tolist(), duration=0.4)
+    trajectory = joint_waypoints(robot, rng, q0, 0.6, 0.4)
     settings = ReferenceSettings(position_tolerance=0.001, orientation_tolerance=0.005)
     problem = TrackingProblem(robot, trajectory, q0, 0.02, 0.4, settings)
     solver = ConicEpigraph(problem)

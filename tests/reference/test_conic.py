@@ -25,7 +25,7 @@ from otmm_qp.reference.projection import project_path
 from otmm_qp.reference.warm_start import damped_ik_path
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import Robot
-from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
+from tests.factories import joint_waypoints
 
 DT = 0.02
 
@@ -73,9 +73,7 @@ def _ur5() -> Robot:
 def _problem(robot: Robot, seed: int, settings: ReferenceSettings) -> TrackingProblem:
     rng = np.random.default_rng(seed)
     q0 = np.clip(rng.uniform(-1.0, 1.0, robot.nv), -2.0, 2.0)
-    knots = q0 + np.cumsum(rng.uniform(-0.5, 0.5, (3, robot.nv)), axis=0)
-    x0 = robot.forward(robot.configuration(q0))
-    trajectory = JointWaypointsTrajectory(x0, robot, np.vstack([q0, knots]).tolist(), duration=0.3)
+    trajectory = joint_waypoints(robot, rng, q0, 0.5, 0.3)
     return TrackingProblem(robot, trajectory, q0, DT, 0.3, settings)
 
 

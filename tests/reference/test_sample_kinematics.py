@@ -25,6 +25,7 @@ from otmm_qp.reference.kinematics import SampleKinematics
 from otmm_qp.robots.pinocchio_arm import PinocchioArm
 from otmm_qp.robots.planar_arm import PlanarArm
 from otmm_qp.robots.robot import FloatArray, Robot
+from tests.factories import joint_waypoints
 
 ROBOTS: dict[str, Callable[[], Robot]] = {
     "ur5 pose": lambda: PinocchioArm("ur5", task="pose"),
@@ -165,15 +166,12 @@ def test_the_damped_ik_start_is_the_plain_one_and_keeps_the_limits(name: str) ->
     from otmm_qp.reference import ReferenceSettings
     from otmm_qp.reference.problem import TrackingProblem
     from otmm_qp.reference.warm_start import damped_ik_path
-    from otmm_qp.trajectories.waypoints import JointWaypointsTrajectory
 
     robot = ROBOTS[name]()
     rng = np.random.default_rng(5)
     lower, upper = robot.position_limits
     q0 = np.clip(rng.uniform(-1.0, 1.0, robot.nv), lower + 0.1, upper - 0.1)
-    knots = q0 + np.cumsum(rng.uniform(-0.8, 0.8, (3, robot.nv)), axis=0)
-    x0 = robot.forward(robot.configuration(q0))
-    trajectory = JointWaypointsTrajectory(x0, robot, np.vstack([q0, knots]).tolist(), duration=0.4)
+    trajectory = joint_waypoints(robot, rng, q0, 0.8, 0.4)
     settings = ReferenceSettings(position_tolerance=0.001, speed_limit=1.5)
     problem = TrackingProblem(robot, trajectory, q0, 0.02, 0.4, settings)
     path = damped_ik_path(problem)

@@ -92,10 +92,8 @@ def test_same_seed_same_task_and_start_on_the_path(name: str, planar: Robot) -> 
     a = generator.generate(planar, 11)
     b = generator.generate(planar, 11)
     c = generator.generate(planar, 12)
-    assert np.array_equal(a.q0, b.q0) and a.descriptors == b.descriptors
+    assert _same_task(a, b)
     assert not np.array_equal(a.q0, c.q0)
-    for t in np.linspace(0.0, a.duration, 7):
-        assert np.array_equal(a.trajectory.sample(float(t))[0], b.trajectory.sample(float(t))[0])
     x0 = planar.forward(a.q0)
     assert np.allclose(a.trajectory.position(0.0), x0, atol=1e-9)
 
